@@ -1,0 +1,32 @@
+# fdir-service: `make demo` and `make test` set themselves up on first use.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test lint bench clean venv
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/python -m fdir_service.demo
+
+test: $(STAMP)
+	$(BIN)/ruff check fdir_service sim_bridge tests benchmarks
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check fdir_service sim_bridge tests benchmarks
+
+bench: $(STAMP)
+	$(BIN)/sim-bridge bench
+	$(BIN)/fdir bench
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache

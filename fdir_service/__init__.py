@@ -1,0 +1,3 @@
+"""fdir-service: onboard fault detection, isolation and estimation for fixed-wing UAVs."""
+
+__version__ = "0.1.0"

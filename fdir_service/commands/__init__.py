@@ -1,0 +1,1 @@
+"""Subcommands of `fdir`, one module each."""

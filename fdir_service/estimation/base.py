@@ -1,0 +1,61 @@
+"""The contract every filter honours: one `step` per frame, one `StepOutput` back.
+
+Shapes: n = extended-state size (5 airframe states + one entry per fault channel, in the
+scenario's fault order), m = number of measurement rows, nf = number of fault channels.
+Units are SI (m, m/s, rad, rad/s) throughout; conversion to degrees happens only in reports.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+
+@dataclass
+class StepOutput:
+    """What a filter says about one frame.
+
+    t: frame time (s); x_mean (n,), x_cov (n, n): extended-state estimate and covariance;
+    fault_ids (nf,); fault_estimate (nf,) SI; fault_probability (nf,) = P(mode 1);
+    n_eff: effective sample size (N for KF-type filters); resampled: whether this step resampled;
+    pfa, pmd (nf,) and transition (nf, 2, 2) only for adaptive filters (None otherwise).
+    """
+
+    t: float
+    x_mean: np.ndarray
+    x_cov: np.ndarray
+    fault_ids: tuple[str, ...]
+    fault_estimate: np.ndarray
+    fault_probability: np.ndarray
+    n_eff: float
+    resampled: bool
+    pfa: np.ndarray | None = None
+    pmd: np.ndarray | None = None
+    transition: np.ndarray | None = None
+
+    @property
+    def state(self) -> np.ndarray:
+        """Airframe-state estimate z_hat (5,) = [p_d, u, w, theta, q]: what the autopilot flies on."""
+        return self.x_mean[:5]
+
+
+class Filter(Protocol):
+    """A fault-estimating filter. Built by `fdir_service.estimation.factory.build_filter`."""
+
+    name: str
+    fault_ids: tuple[str, ...]
+
+    def step(self, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray) -> StepOutput:
+        """Advance one frame.
+
+        t: frame time (s, from the message timestamps); y (m,) measurements in SI (entries
+        where mask is False are ignored and may be NaN); mask (m,) bool, True where the row
+        arrived; u (2,) = [delta_e rad, delta_t] applied since the previous frame.
+        """
+        ...
+
+    def top_particles(self, k: int = 20) -> tuple[np.ndarray, np.ndarray]:
+        """The k most weighted particles (k, n) and their weights (k,); a KF returns its mean."""
+        ...

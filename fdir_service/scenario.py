@@ -1,0 +1,415 @@
+"""Scenario files (`config/scenarios/*.toml`): the world, the faults and the estimator settings.
+
+One file describes a thesis experiment (SPEC section 7): the truth model, the measurement set and
+its true noise, the fault channels (each with its true time profile, possibly empty, and the
+estimator's settings for it), the autopilot command and the filters to compare. Everything is
+validated on load: an unknown key, a wrong type or an impossible value raises `ConfigError`
+naming the key. Units: SI (m, m/s, rad, rad/s, s) except a fault's `amplitude`, which is in the
+fault's `unit`.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fdir_service.errors import ConfigError
+from fdir_service.paths import scenario_path
+
+MEASUREMENTS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q")
+"""Measurement names, in the order a scenario may list them; SI units (m, m, m/s, m/s, rad, rad/s)."""
+ACTUATORS = ("delta_e", "delta_t")
+FILTER_NAMES = ("KF", "IMM-KF", "RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "EKF-GATE")
+PROFILE_SHAPES = ("step", "exponential", "ramp", "intermittent")
+UNITS = {"m": 1.0, "m/s": 1.0, "rad": 1.0, "rad/s": 1.0, "deg": math.pi / 180.0,
+         "deg/s": math.pi / 180.0, "1": 1.0}
+
+
+@dataclass(frozen=True)
+class ProfileComponent:
+    """One additive piece of a fault's time course (values in SI once loaded).
+
+    step: `amplitude` on [start_s, end_s); exponential: amplitude * exp((t - end_s) / tau_s) on
+    [start_s, end_s) (the thesis's 10 e^(t-40) deg is amplitude 10 deg, tau 1 s, end 40 s); ramp:
+    0 at start_s rising linearly to amplitude at end_s; intermittent: amplitude during on_s, then
+    0 during off_s, repeating from start_s until end_s.
+    """
+
+    shape: str
+    start_s: float
+    end_s: float
+    amplitude: float
+    tau_s: float = 1.0
+    on_s: float = 1.0
+    off_s: float = 1.0
+
+
+@dataclass(frozen=True)
+class FaultChannel:
+    """An additive fault on a measurement row (`kind` sensor) or an input (`kind` actuator).
+
+    `profile` is the truth (summed components, SI); `sigma_f` and `x0_sigma` are the estimator's
+    fault process-noise and initial standard deviations, SI.
+    """
+
+    id: str
+    target: str
+    kind: str
+    unit: str
+    profile: tuple[ProfileComponent, ...]
+    sigma_f: float
+    x0_sigma: float = 0.0
+
+    @property
+    def unit_scale(self) -> float:
+        """Multiply an SI value by 1/unit_scale to express it in `unit`."""
+        return UNITS[self.unit]
+
+
+@dataclass(frozen=True)
+class TruthConfig:
+    model: str = "nonlinear"          # "linear" | "nonlinear"
+    linear_matrices: str = "printed"  # for a linear truth: "printed" | "derived"
+    airspeed_mps: float = 40.0
+    altitude_m: float = 500.0
+
+
+@dataclass(frozen=True)
+class AltitudeStep:
+    t_s: float
+    altitude_m: float
+
+
+@dataclass(frozen=True)
+class CommandConfig:
+    altitude_m: float = 500.0
+    airspeed_mps: float = 40.0
+    altitude_steps: tuple[AltitudeStep, ...] = ()
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    measurements: tuple[str, ...]
+    sigma: dict[str, float]            # true noise std per measurement, SI
+    filter_noise_factor: float = 1.5   # filters assume this times the true sigma
+    gnss_gauss_markov: bool = False    # eq. 3.29 error model (off in the thesis scenarios)
+
+    def filter_sigma(self) -> list[float]:
+        """Measurement noise std the filters assume, in measurement order (SI)."""
+        return [self.sigma[m] * self.filter_noise_factor for m in self.measurements]
+
+
+@dataclass(frozen=True)
+class ImmConfig:
+    mode0_sigma_f: tuple[float, ...] = ()
+    mode1_sigma_f: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
+class GatingConfig:
+    """PX4-EKF2-style innovation gating: test ratio = nu^2 / (gate^2 S); faulty if > 1 for hold_s."""
+
+    gate_sigma: float = 5.0
+    hold_s: float = 0.25
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    filters: tuple[str, ...]
+    proposed: str
+    particles: int = 1000
+    process_model: str = "nonlinear"     # "linear" | "nonlinear"
+    linear_matrices: str = "printed"     # for a linear process model
+    sigma_x: tuple[float, ...] = ()      # state process noise std (5,), SI
+    x0_sigma: tuple[float, ...] = ()     # initial state std (5,), SI
+    resample_threshold: float = 0.5      # Gamma: resample when N_eff < Gamma N
+    bandwidth: float | None = None       # h (thesis value); if None, bandwidth_k * h_opt
+    bandwidth_k: float = 0.2
+    resampler: str = "multinomial"       # "multinomial" | "systematic"
+    mode0: str = "forced_zero"           # "forced_zero" | "reset_on_exit"
+    pi01: float = 0.01
+    pi10: float = 0.01
+    saddlepoint_window: int = 3
+    imm: ImmConfig = field(default_factory=ImmConfig)
+    gating: GatingConfig = field(default_factory=GatingConfig)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    id: str
+    title: str
+    thesis_section: str
+    thesis_table: str
+    duration_s: float
+    dt_s: float
+    truth: TruthConfig
+    command: CommandConfig
+    sensors: SensorConfig
+    faults: tuple[FaultChannel, ...]
+    estimator: EstimatorConfig
+    source: str = ""
+
+    @property
+    def steps(self) -> int:
+        """Number of filter steps in the run (duration / dt)."""
+        return int(round(self.duration_s / self.dt_s))
+
+    @property
+    def sensor_faults(self) -> tuple[FaultChannel, ...]:
+        return tuple(f for f in self.faults if f.kind == "sensor")
+
+    @property
+    def actuator_faults(self) -> tuple[FaultChannel, ...]:
+        return tuple(f for f in self.faults if f.kind == "actuator")
+
+
+# ----------------------------------------------------------------------------- validation
+
+class _Table:
+    """A TOML table being read: every key must be consumed, else it is reported as unknown."""
+
+    def __init__(self, data: Any, where: str) -> None:
+        if not isinstance(data, dict):
+            raise ConfigError(f"{where}: expected a table, got {type(data).__name__}")
+        self.data = dict(data)
+        self.where = where
+
+    def _key(self, key: str) -> str:
+        return f"{self.where}.{key}" if self.where else key
+
+    def pop(self, key: str, kind: str, default: Any = ..., *, choices: tuple[str, ...] = (),
+            positive: bool = False, nonneg: bool = False, unit_interval: bool = False) -> Any:
+        if key not in self.data:
+            if default is ...:
+                raise ConfigError(f"{self._key(key)}: missing, expected {kind}")
+            return default
+        val = self.data.pop(key)
+        name = self._key(key)
+        if kind == "number":
+            if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val):
+                raise ConfigError(f"{name}: expected a finite number, got {val!r}")
+            val = float(val)
+        elif kind == "integer":
+            if isinstance(val, bool) or not isinstance(val, int):
+                raise ConfigError(f"{name}: expected an integer, got {val!r}")
+        elif kind == "string":
+            if not isinstance(val, str):
+                raise ConfigError(f"{name}: expected a string, got {val!r}")
+            if choices and val not in choices:
+                raise ConfigError(f"{name}: expected one of {', '.join(choices)}, got {val!r}")
+        elif kind == "boolean":
+            if not isinstance(val, bool):
+                raise ConfigError(f"{name}: expected true or false, got {val!r}")
+        elif kind == "numbers":
+            if not isinstance(val, list) or not all(
+                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                for v in val
+            ):
+                raise ConfigError(f"{name}: expected a list of finite numbers, got {val!r}")
+            val = tuple(float(v) for v in val)
+            if nonneg and any(v < 0 for v in val):
+                raise ConfigError(f"{name}: expected non-negative numbers, got {val!r}")
+            return val
+        elif kind == "strings":
+            if not isinstance(val, list) or not all(isinstance(v, str) for v in val):
+                raise ConfigError(f"{name}: expected a list of strings, got {val!r}")
+            for v in val:
+                if choices and v not in choices:
+                    raise ConfigError(f"{name}: {v!r} is not one of {', '.join(choices)}")
+            return tuple(val)
+        if kind in ("number", "integer"):
+            if positive and val <= 0:
+                raise ConfigError(f"{name}: expected a positive value, got {val!r}")
+            if nonneg and val < 0:
+                raise ConfigError(f"{name}: expected a non-negative value, got {val!r}")
+            if unit_interval and not 0.0 <= val <= 1.0:
+                raise ConfigError(f"{name}: expected a value in [0, 1], got {val!r}")
+        return val
+
+    def sub(self, key: str, required: bool = False) -> _Table:
+        if key not in self.data:
+            if required:
+                raise ConfigError(f"{self._key(key)}: missing table")
+            return _Table({}, self._key(key))
+        return _Table(self.data.pop(key), self._key(key))
+
+    def finish(self) -> None:
+        if self.data:
+            keys = ", ".join(self._key(k) for k in sorted(self.data))
+            raise ConfigError(f"unknown key(s): {keys}")
+
+
+def _profile(t: _Table) -> ProfileComponent:
+    shape = t.pop("shape", "string", choices=PROFILE_SHAPES)
+    start = t.pop("start_s", "number", nonneg=True)
+    end = t.pop("end_s", "number", positive=True)
+    if end <= start:
+        raise ConfigError(f"{t.where}.end_s: expected a time after start_s ({start}), got {end}")
+    comp = ProfileComponent(
+        shape=shape, start_s=start, end_s=end, amplitude=t.pop("amplitude", "number"),
+        tau_s=t.pop("tau_s", "number", 1.0, positive=True),
+        on_s=t.pop("on_s", "number", 1.0, positive=True),
+        off_s=t.pop("off_s", "number", 1.0, positive=True),
+    )
+    t.finish()
+    return comp
+
+
+def _fault(t: _Table, measurements: tuple[str, ...]) -> FaultChannel:
+    fid = t.pop("id", "string")
+    if not fid.isidentifier() or len(fid) > 7:
+        raise ConfigError(f"{t.where}.id: expected a short identifier (<= 7 chars, for "
+                          f"MAVLink names like pfa_<id>), got {fid!r}")
+    target = t.pop("target", "string", choices=measurements + ACTUATORS)
+    kind = "actuator" if target in ACTUATORS else "sensor"
+    unit = t.pop("unit", "string", choices=tuple(UNITS))
+    scale = UNITS[unit]
+    comps = []
+    raw = t.data.pop("profile", [])
+    if not isinstance(raw, list):
+        raise ConfigError(f"{t.where}.profile: expected an array of tables ([[faults.profile]])")
+    for i, c in enumerate(raw):
+        pc = _profile(_Table(c, f"{t.where}.profile[{i}]"))
+        comps.append(ProfileComponent(pc.shape, pc.start_s, pc.end_s, pc.amplitude * scale,
+                                      pc.tau_s, pc.on_s, pc.off_s))
+    ch = FaultChannel(
+        id=fid, target=target, kind=kind, unit=unit, profile=tuple(comps),
+        sigma_f=t.pop("sigma_f", "number", nonneg=True),
+        x0_sigma=t.pop("x0_sigma", "number", 0.0, nonneg=True),
+    )
+    t.finish()
+    return ch
+
+
+def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
+    """Validate a parsed scenario TOML document; raise ConfigError naming the first bad key."""
+    root = _Table(doc, "")
+    s = root.sub("scenario", required=True)
+    sid = s.pop("id", "string")
+    title = s.pop("title", "string", "")
+    section = s.pop("thesis_section", "string", "")
+    table = s.pop("thesis_table", "string", "")
+    duration = s.pop("duration_s", "number", 50.0, positive=True)
+    dt = s.pop("dt_s", "number", 0.05, positive=True)
+    s.finish()
+
+    t = root.sub("truth")
+    truth = TruthConfig(
+        model=t.pop("model", "string", "nonlinear", choices=("linear", "nonlinear")),
+        linear_matrices=t.pop("linear_matrices", "string", "printed",
+                              choices=("printed", "derived")),
+        airspeed_mps=t.pop("airspeed_mps", "number", 40.0, positive=True),
+        altitude_m=t.pop("altitude_m", "number", 500.0),
+    )
+    t.finish()
+
+    c = root.sub("command")
+    steps = []
+    raw_steps = c.data.pop("altitude_steps", [])
+    if not isinstance(raw_steps, list):
+        raise ConfigError("command.altitude_steps: expected an array of tables")
+    for i, st in enumerate(raw_steps):
+        tt = _Table(st, f"command.altitude_steps[{i}]")
+        steps.append(AltitudeStep(tt.pop("t_s", "number", nonneg=True),
+                                  tt.pop("altitude_m", "number")))
+        tt.finish()
+    command = CommandConfig(
+        altitude_m=c.pop("altitude_m", "number", truth.altitude_m),
+        airspeed_mps=c.pop("airspeed_mps", "number", truth.airspeed_mps, positive=True),
+        altitude_steps=tuple(steps),
+    )
+    c.finish()
+
+    se = root.sub("sensors", required=True)
+    meas = se.pop("measurements", "strings", choices=MEASUREMENTS)
+    if not meas or len(set(meas)) != len(meas):
+        raise ConfigError("sensors.measurements: expected a non-empty list without repeats")
+    sig_t = se.sub("sigma", required=True)
+    sigma = {m: sig_t.pop(m, "number", positive=True) for m in meas}
+    sig_t.finish()
+    sensors = SensorConfig(
+        measurements=meas, sigma=sigma,
+        filter_noise_factor=se.pop("filter_noise_factor", "number", 1.5, positive=True),
+        gnss_gauss_markov=se.pop("gnss_gauss_markov", "boolean", False),
+    )
+    se.finish()
+
+    raw_faults = root.data.pop("faults", [])
+    if not isinstance(raw_faults, list):
+        raise ConfigError("faults: expected an array of tables ([[faults]])")
+    faults = tuple(_fault(_Table(f, f"faults[{i}]"), meas) for i, f in enumerate(raw_faults))
+    ids = [f.id for f in faults]
+    if len(set(ids)) != len(ids):
+        raise ConfigError(f"faults: fault ids must be unique, got {ids}")
+
+    e = root.sub("estimator", required=True)
+    filters = e.pop("filters", "strings", choices=FILTER_NAMES)
+    proposed = e.pop("proposed", "string", choices=FILTER_NAMES)
+    if proposed not in filters:
+        raise ConfigError(f"estimator.proposed: {proposed!r} must be one of estimator.filters")
+    sigma_x = e.pop("sigma_x", "numbers", nonneg=True)
+    x0_sigma = e.pop("x0_sigma", "numbers", nonneg=True)
+    for key, val in (("sigma_x", sigma_x), ("x0_sigma", x0_sigma)):
+        if len(val) != 5:
+            raise ConfigError(f"estimator.{key}: expected 5 values [p_d, u, w, theta, q], "
+                              f"got {len(val)}")
+    bw = e.pop("bandwidth", "number", None, positive=True)
+    imm_t = e.sub("imm")
+    nf = len(faults)
+    imm = ImmConfig(mode0_sigma_f=imm_t.pop("mode0_sigma_f", "numbers", (0.0,) * nf, nonneg=True),
+                    mode1_sigma_f=imm_t.pop("mode1_sigma_f", "numbers",
+                                            tuple(f.sigma_f for f in faults), nonneg=True))
+    for key, val in (("mode0_sigma_f", imm.mode0_sigma_f), ("mode1_sigma_f", imm.mode1_sigma_f)):
+        if len(val) != nf:
+            raise ConfigError(f"estimator.imm.{key}: expected {nf} values (one per fault), "
+                              f"got {len(val)}")
+    imm_t.finish()
+    g_t = e.sub("gating")
+    gating = GatingConfig(gate_sigma=g_t.pop("gate_sigma", "number", 5.0, positive=True),
+                          hold_s=g_t.pop("hold_s", "number", 0.25, nonneg=True))
+    g_t.finish()
+    est = EstimatorConfig(
+        filters=filters, proposed=proposed,
+        particles=e.pop("particles", "integer", 1000, positive=True),
+        process_model=e.pop("process_model", "string", "nonlinear",
+                            choices=("linear", "nonlinear")),
+        linear_matrices=e.pop("linear_matrices", "string", "printed",
+                              choices=("printed", "derived")),
+        sigma_x=sigma_x, x0_sigma=x0_sigma,
+        resample_threshold=e.pop("resample_threshold", "number", 0.5, unit_interval=True),
+        bandwidth=bw,
+        bandwidth_k=e.pop("bandwidth_k", "number", 0.2, positive=True),
+        resampler=e.pop("resampler", "string", "multinomial",
+                        choices=("multinomial", "systematic")),
+        mode0=e.pop("mode0", "string", "forced_zero", choices=("forced_zero", "reset_on_exit")),
+        pi01=e.pop("pi01", "number", 0.01, unit_interval=True),
+        pi10=e.pop("pi10", "number", 0.01, unit_interval=True),
+        saddlepoint_window=e.pop("saddlepoint_window", "integer", 3, positive=True),
+        imm=imm, gating=gating,
+    )
+    e.finish()
+    root.finish()
+    return Scenario(sid, title, section, table, duration, dt, truth, command, sensors, faults,
+                    est, source)
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load and validate a scenario by id (`ch4`) or path."""
+    path = scenario_path(name_or_path)
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError as exc:
+        raise ConfigError(f"{path}: no such scenario file") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
+    try:
+        return parse_scenario(doc, str(path))
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+SCENARIO_IDS = ("ch4", "ch5a", "ch5b", "ch5c", "ch6")

@@ -1,0 +1,1 @@
+"""sim-bridge: the Aerosonde world (airframe truth, sensors, faults, autopilot) and campaigns."""

@@ -1,0 +1,1 @@
+"""Subcommands of `sim-bridge`, one module each."""
