@@ -42,7 +42,7 @@ class Trim:
 def trim(
     p: AirframeParams, airspeed: float = 40.0, altitude: float = 500.0, gamma: float = 0.0
 ) -> Trim:
-    """Solve f(z*, u*) = 0 for (alpha, delta_e, delta_t) at airspeed (m/s) and flight-path angle gamma (rad)."""
+    """Solve f(z*, u*) = 0 for (alpha, delta_e, delta_t) at airspeed (m/s), flight-path angle gamma (rad)."""
 
     def state(alpha: float) -> np.ndarray:
         return np.array(
