@@ -1,0 +1,143 @@
+"""Longitudinal autopilot: LQR with integral action plus an altitude guidance loop.
+
+Thesis [3.7]-[3.8] and Appendix C, SPEC section 4; designed in discrete time (python-control
+`lqr` on a discrete state-space model) at the model's sample time dt.
+
+Inner loop (control, [3.7]): on the reduced deviation state dzr = [du, dw, dtheta, dq] (p_d does
+not enter the other rows of F) augmented with two integrators of the tracking errors
+    x_gamma_{k+1} = x_gamma_k + dt (gamma_c - gamma_k),  gamma = theta - alpha,
+    x_V_{k+1}     = x_V_k     + dt (V_c - V_k),
+with alpha and V linearised at trim as in eq. 3.54-3.55 (alpha ~ alpha* + (-w* du + u* dw) / Va*^2,
+V ~ Va* + (u* du + w* dw) / Va*), the LQR gain K gives [d delta_e, d delta_t] = -K [dzr, x_gamma, x_V].
+
+Outer loop (guidance, [3.8]): the inner closed loop plus p_d and an altitude-error integrator
+x_h_{k+1} = x_h_k + dt (h_c - h); a second LQR gives the flight-path-angle command
+gamma_raw = -L [p_d - p_d_c, dzr, x_gamma, x_V, x_h], saturated to +-28 deg. Anti-windup by
+back-calculation with gain K_aw = 2 (1/s): x_h also integrates K_aw (gamma_sat - gamma_raw) / g_h,
+g_h = d gamma_raw / d x_h, so the unsaturated command relaxes to the limit with a 0.5 s time
+constant while saturated.
+
+Actuator limits: delta_e in +-30 deg, delta_t in [0, 1]. While an actuator sits on its limit the
+inner integrators are frozen (conditional integration).
+"""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+
+from fdir_service.airframe.linearize import LinearModel
+from fdir_service.scenario import CommandConfig
+
+GAMMA_LIMIT_RAD = np.radians(28.0)
+ELEVATOR_LIMIT_RAD = np.radians(30.0)
+THROTTLE_LIMITS = (0.0, 1.0)
+ANTI_WINDUP_GAIN = 2.0
+
+# LQR weights (discrete design; states in SI). Chosen for a well-damped response: see docs/simulator.md.
+# Inner: [du, dw, dtheta, dq, x_gamma, x_V]; inputs [delta_e, delta_t].
+INNER_Q = np.diag([0.5, 0.1, 10.0, 1.0, 1000.0, 2.0])
+INNER_R = np.diag([20.0, 20.0])
+# Outer: [e_pd, du, dw, dtheta, dq, x_gamma, x_V, x_h]; input gamma_c.
+OUTER_Q = np.diag([0.02, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.002])
+OUTER_R = np.array([[50.0]])
+
+
+def design_gains(model: LinearModel, inner_q: np.ndarray = INNER_Q, inner_r: np.ndarray = INNER_R,
+                 outer_q: np.ndarray = OUTER_Q, outer_r: np.ndarray = OUTER_R) -> dict[str, np.ndarray]:
+    """The inner gain K (2, 6), the outer gain L (1, 8) and the linearised output rows."""
+    F, B, dt = model.F, model.B, model.dt
+    zs = model.trim.z
+    us, ws = zs[1], zs[2]
+    va2 = us * us + ws * ws
+    va = np.sqrt(va2)
+    h_gamma = np.array([ws / va2, -us / va2, 1.0, 0.0])     # gamma = theta - alpha (linearised)
+    h_v = np.array([us / va, ws / va, 0.0, 0.0])             # airspeed (linearised)
+    Fr, Br = F[1:, 1:], B[1:, :]
+    Fa = np.zeros((6, 6))
+    Fa[:4, :4] = Fr
+    Fa[4, :4] = -dt * h_gamma
+    Fa[5, :4] = -dt * h_v
+    Fa[4, 4] = Fa[5, 5] = 1.0
+    Ba = np.vstack([Br, np.zeros((2, 2))])
+    K, _, _ = control.lqr(control.ss(Fa, Ba, np.eye(6), np.zeros((6, 2)), dt), inner_q, inner_r)
+    K = np.asarray(K)
+    # Inner closed loop with gamma_c as input, extended with e_pd and x_h (outer design model).
+    Fo = np.zeros((8, 8))
+    Fo[0, 0] = 1.0
+    Fo[0, 1:5] = F[0, 1:]
+    Fo[0, 1:7] -= B[0] @ K                       # p_d row sees the inner control too
+    Fo[1:7, 1:7] = Fa - Ba @ K
+    Fo[7, 0] = dt                                # x_h integrates h_c - h = p_d - p_d_c
+    Fo[7, 7] = 1.0
+    Bo = np.zeros((8, 1))
+    Bo[5, 0] = dt                                # gamma_c enters the gamma integrator
+    L, _, _ = control.lqr(control.ss(Fo, Bo, np.eye(8), np.zeros((8, 1)), dt), outer_q, outer_r)
+    return {"K": K, "L": np.asarray(L), "h_gamma": h_gamma, "h_v": h_v,
+            "inner_closed": Fa - Ba @ K, "outer_closed": Fo - Bo @ np.asarray(L)}
+
+
+class Autopilot:
+    """Altitude and airspeed hold on a navigation estimate; `update` once per frame."""
+
+    def __init__(self, model: LinearModel, command: CommandConfig, dt: float) -> None:
+        if abs(dt - model.dt) > 1e-12:
+            raise ValueError(f"autopilot dt {dt} s differs from the design model's {model.dt} s")
+        self.model = model
+        self.command = command
+        self.dt = dt
+        g = design_gains(model)
+        self.K, self.L = g["K"], g["L"][0]
+        self.h_gamma, self.h_v = g["h_gamma"], g["h_v"]
+        self.z_trim = model.trim.z.copy()
+        self.u_trim = model.trim.u.copy()
+        self.va_trim = float(np.hypot(self.z_trim[1], self.z_trim[2]))
+        self.gamma_trim = float(model.trim.gamma)
+        self._g_h = -self.L[7]        # d gamma_raw / d x_h
+        self._steps = sorted(command.altitude_steps, key=lambda s: s.t_s)
+        self.reset()
+
+    def reset(self) -> None:
+        """Integrators to zero, commands to the trim."""
+        self.x_gamma = 0.0
+        self.x_v = 0.0
+        self.x_h = 0.0
+        self.gamma_command = self.gamma_trim
+        self.gamma_raw = self.gamma_trim
+        self.saturated = False
+        self.u = self.u_trim.copy()
+
+    def altitude_command(self, t: float) -> float:
+        """Commanded altitude (m) at time t (s): the last altitude step reached, else command.altitude_m."""
+        h = self.command.altitude_m
+        for st in self._steps:
+            if t >= st.t_s - 1e-9:
+                h = st.altitude_m
+        return h
+
+    def update(self, t: float, z_nav: np.ndarray) -> np.ndarray:
+        """Input u (2,) = [delta_e rad, delta_t] for the navigation state z_nav (5,) at time t (s)."""
+        z_nav = np.asarray(z_nav, dtype=float)
+        dzr = z_nav[1:] - self.z_trim[1:]
+        e_pd = z_nav[0] + self.altitude_command(t)                 # p_d - p_d_c
+        gamma = self.gamma_trim + self.h_gamma @ dzr
+        va = self.va_trim + self.h_v @ dzr
+        # Outer loop: flight-path-angle command, saturated, with back-calculation anti-windup.
+        o = np.concatenate([[e_pd], dzr, [self.x_gamma, self.x_v, self.x_h]])
+        gamma_dev = -self.L @ o
+        self.gamma_raw = self.gamma_trim + gamma_dev
+        gamma_c = float(np.clip(self.gamma_raw, -GAMMA_LIMIT_RAD, GAMMA_LIMIT_RAD))
+        self.gamma_command = gamma_c
+        # Inner loop.
+        xi = np.concatenate([dzr, [self.x_gamma, self.x_v]])
+        u = self.u_trim - self.K @ xi
+        u_sat = np.array([np.clip(u[0], -ELEVATOR_LIMIT_RAD, ELEVATOR_LIMIT_RAD),
+                          np.clip(u[1], *THROTTLE_LIMITS)])
+        self.saturated = bool(np.any(u_sat != u))
+        # Integrators (forward Euler, as in the design model).
+        self.x_h += self.dt * (e_pd + ANTI_WINDUP_GAIN * (gamma_c - self.gamma_raw) / self._g_h)
+        if not self.saturated:
+            self.x_gamma += self.dt * (gamma_c - gamma)
+            self.x_v += self.dt * (self.command.airspeed_mps - va)
+        self.u = u_sat
+        return u_sat.copy()

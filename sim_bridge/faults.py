@@ -1,0 +1,59 @@
+"""True fault time courses of a scenario (SPEC section 7; semantics in `ProfileComponent`).
+
+Each fault channel's value is the sum of its profile components, in SI units (m, rad, rad/s, ...):
+- step: `amplitude` on [start_s, end_s);
+- exponential: amplitude * exp((t - end_s) / tau_s) on [start_s, end_s);
+- ramp: 0 at start_s rising linearly to `amplitude` at end_s, on [start_s, end_s), 0 after;
+- intermittent: amplitude during on_s, then 0 during off_s, repeating from start_s until end_s.
+Interval edges are compared with a 1e-9 s tolerance so that frame times k * dt that land on a
+key time up to rounding (e.g. 200 * 0.05) fall on the intended side.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fdir_service.scenario import FaultChannel, ProfileComponent, Scenario
+
+EDGE_TOL_S = 1e-9
+
+
+def component_value(comp: ProfileComponent, t: float | np.ndarray) -> np.ndarray:
+    """Value (SI) of one profile component at time(s) t (s); array of t's shape."""
+    t = np.asarray(t, dtype=float)
+    active = (t >= comp.start_s - EDGE_TOL_S) & (t < comp.end_s - EDGE_TOL_S)
+    if comp.shape == "step":
+        val = np.full(t.shape, comp.amplitude)
+    elif comp.shape == "exponential":
+        val = comp.amplitude * np.exp(np.minimum(t - comp.end_s, 0.0) / comp.tau_s)
+    elif comp.shape == "ramp":
+        frac = np.clip((t - comp.start_s) / (comp.end_s - comp.start_s), 0.0, 1.0)
+        val = comp.amplitude * frac
+    elif comp.shape == "intermittent":
+        phase = np.mod(t - comp.start_s + EDGE_TOL_S, comp.on_s + comp.off_s)
+        val = np.where(phase < comp.on_s, comp.amplitude, 0.0)
+    else:  # the scenario loader only admits the four shapes above
+        raise ValueError(f"unknown fault profile shape {comp.shape!r}")
+    return np.where(active, val, 0.0)
+
+
+def channel_value(channel: FaultChannel, t: float | np.ndarray) -> float | np.ndarray:
+    """The channel's true fault value(s) (SI) at time(s) t (s): sum of its profile components.
+
+    A scalar t gives a float, an array of times an array of the same shape.
+    """
+    tt = np.asarray(t, dtype=float)
+    total = np.zeros(tt.shape)
+    for comp in channel.profile:
+        total = total + component_value(comp, tt)
+    return float(total) if total.ndim == 0 else total
+
+
+def fault_vector(scenario: Scenario, t: float) -> np.ndarray:
+    """All fault values (nf,) at time t (s), SI, in the scenario's fault order."""
+    return np.array([channel_value(ch, t) for ch in scenario.faults], dtype=float)
+
+
+def fault_active_intervals(scenario: Scenario) -> list[tuple[str, float, float]]:
+    """(fault id, start_s, end_s) of every profile component, for plots and summaries."""
+    return [(ch.id, c.start_s, c.end_s) for ch in scenario.faults for c in ch.profile]

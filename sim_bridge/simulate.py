@@ -1,0 +1,149 @@
+"""Closed-loop simulation of a scenario: truth, faults, sensors, navigation and autopilot.
+
+Frame k at t_k = k dt: faults f_k = f(t_k); y_k = sensors(z_k, f_k); the navigation estimate is
+nav(t_k, y_k, mask_k, u_{k-1}) (a filter) or the truth z_k; u_k = autopilot(t_k, z_nav); the truth
+steps over [t_k, t_k+1) with u_k plus the actuator faults f_k.
+
+Randomness: `SeedSequence(seed).spawn(2)` -> [sensor noise, everything else], so the sensor noise
+of a run depends only on the seed, whatever the navigation does. Same seed, same bits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from fdir_service.airframe import AirframeParams, linearize, load_airframe
+from fdir_service.scenario import Scenario
+from sim_bridge.autopilot import Autopilot
+from sim_bridge.faults import fault_vector
+from sim_bridge.sensors import SensorSuite
+from sim_bridge.world import Truth
+
+NavFn = Callable[[float, np.ndarray, np.ndarray, np.ndarray], Any]
+
+
+@dataclass
+class Frame:
+    """One sensor frame.
+
+    t (s); y (m,) SI in scenario measurement order; mask (m,) bool (all True here);
+    static_pressure_pa: the barometer's static pressure (Pa); z_true (5,); faults (nf,) SI at t;
+    u_applied (2,): the commanded input [delta_e rad, delta_t] applied over the previous interval
+    (what the onboard system knows; actuator faults excluded), the trim input at k = 0.
+    """
+
+    t: float
+    y: np.ndarray
+    mask: np.ndarray
+    static_pressure_pa: float
+    z_true: np.ndarray
+    faults: np.ndarray
+    u_applied: np.ndarray
+
+
+@dataclass
+class Trajectory:
+    """A closed-loop run, K frames: t (K,), z (K, 5) truth, y (K, m), mask (K, m), u (K, 2)
+    commanded input at each frame, faults (K, nf), nav (K, 5) the state the autopilot flew on,
+    gamma_cmd (K,) rad, static_pressure_pa (K,), outputs: what nav returned at each frame."""
+
+    t: np.ndarray
+    z: np.ndarray
+    y: np.ndarray
+    mask: np.ndarray
+    u: np.ndarray
+    faults: np.ndarray
+    nav: np.ndarray
+    gamma_cmd: np.ndarray
+    static_pressure_pa: np.ndarray
+    seed: int
+    outputs: list = field(default_factory=list)
+
+
+def default_autopilot(scenario: Scenario, airframe: AirframeParams) -> Autopilot:
+    """The autopilot designed on the derived linear model at the scenario's trim and dt."""
+    model = linearize(airframe, scenario.truth.airspeed_mps, scenario.truth.altitude_m, scenario.dt_s)
+    return Autopilot(model, scenario.command, scenario.dt_s)
+
+
+class SimStepper:
+    """The world one frame at a time: `frame()` then `advance(u_cmd)`, repeatedly."""
+
+    def __init__(self, scenario: Scenario, seed: int, airframe: AirframeParams | None = None) -> None:
+        self.scenario = scenario
+        self.seed = seed
+        self.airframe = airframe if airframe is not None else load_airframe()
+        sensor_ss, world_ss = np.random.SeedSequence(seed).spawn(2)
+        self.sensors = SensorSuite(scenario, np.random.default_rng(sensor_ss))
+        self.truth = Truth(scenario, self.airframe, np.random.default_rng(world_ss))
+        self.dt = scenario.dt_s
+        self.k = 0
+        self.u_prev = self.truth.trim.u.copy()
+        self._frame: Frame | None = None
+
+    @property
+    def t(self) -> float:
+        """Time of the current frame (s)."""
+        return self.k * self.dt
+
+    def frame(self) -> Frame:
+        """The current frame (made once per step; calling again returns the same frame)."""
+        if self._frame is None:
+            t = self.t
+            f = fault_vector(self.scenario, t)
+            y = self.sensors.measure(self.truth.z, t, f)
+            self._frame = Frame(t, y, np.ones(y.size, dtype=bool),
+                                float(self.sensors.last_static_pressure_pa), self.truth.z.copy(), f,
+                                self.u_prev.copy())
+        return self._frame
+
+    def advance(self, u_cmd: np.ndarray) -> None:
+        """Step the truth over [t_k, t_k+1) with u_cmd (2,) plus the actuator faults at t_k."""
+        fr = self.frame()
+        u_cmd = np.asarray(u_cmd, dtype=float)
+        self.truth.step(u_cmd, fr.faults)
+        self.u_prev = u_cmd.copy()
+        self.k += 1
+        self._frame = None
+
+
+def run(scenario: Scenario, seed: int, seconds: float | None = None, nav: NavFn | None = None,
+        airframe: AirframeParams | None = None, autopilot: Autopilot | None = None) -> Trajectory:
+    """Fly the scenario in closed loop for `seconds` (default scenario.duration_s) at scenario.dt_s.
+
+    nav(t, y, mask, u_prev) returns an object with `.state` (5,) or a (5,) array; None flies on
+    the truth. `autopilot` overrides the default design (tests use it for custom commands).
+    """
+    stepper = SimStepper(scenario, seed, airframe)
+    ap = autopilot if autopilot is not None else default_autopilot(scenario, stepper.airframe)
+    ap.reset()
+    duration = scenario.duration_s if seconds is None else seconds
+    K = int(round(duration / scenario.dt_s))
+    m, nf = len(scenario.sensors.measurements), len(scenario.faults)
+    t = np.empty(K)
+    z = np.empty((K, 5))
+    y = np.empty((K, m))
+    mask = np.empty((K, m), dtype=bool)
+    u = np.empty((K, 2))
+    faults = np.empty((K, nf))
+    navs = np.empty((K, 5))
+    gamma = np.empty(K)
+    ps = np.empty(K)
+    outputs: list = []
+    for k in range(K):
+        fr = stepper.frame()
+        if nav is None:
+            z_nav = fr.z_true
+        else:
+            out = nav(fr.t, fr.y, fr.mask, fr.u_applied)
+            outputs.append(out)
+            z_nav = np.asarray(out.state if hasattr(out, "state") else out, dtype=float)
+        u_k = ap.update(fr.t, z_nav)
+        t[k], z[k], y[k], mask[k], faults[k] = fr.t, fr.z_true, fr.y, fr.mask, fr.faults
+        u[k], navs[k], gamma[k], ps[k] = u_k, z_nav, ap.gamma_command, fr.static_pressure_pa
+        stepper.advance(u_k)
+    return Trajectory(t, z, y, mask, u, faults, navs, gamma, ps, seed, outputs)
