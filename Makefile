@@ -18,11 +18,11 @@ demo: $(STAMP)
 	$(BIN)/python -m fdir_service.demo
 
 test: $(STAMP)
-	$(BIN)/ruff check fdir_service sim_bridge tests benchmarks
+	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
-	$(BIN)/ruff check fdir_service sim_bridge tests benchmarks
+	$(BIN)/ruff check .
 
 bench: $(STAMP)
 	$(BIN)/sim-bridge bench
