@@ -123,7 +123,8 @@ class EstimatorConfig:
     particles: int = 1000
     process_model: str = "nonlinear"     # "linear" | "nonlinear"
     linear_matrices: str = "printed"     # for a linear process model
-    sigma_x: tuple[float, ...] = ()      # state process noise std (5,), SI
+    sigma_x: tuple[float, ...] = ()      # state process noise (5,), SI; see sigma_x_basis
+    sigma_x_basis: str = "step"          # "step": per-step std | "sqrt_second": density, std = sigma sqrt(dt)
     x0_sigma: tuple[float, ...] = ()     # initial state std (5,), SI
     resample_threshold: float = 0.5      # Gamma: resample when N_eff < Gamma N
     bandwidth: float | None = None       # h (thesis value); if None, bandwidth_k * h_opt
@@ -151,6 +152,12 @@ class Scenario:
     faults: tuple[FaultChannel, ...]
     estimator: EstimatorConfig
     source: str = ""
+
+    def state_process_std(self) -> tuple[float, ...]:
+        """Per-step std (5,) of the airframe-state process noise the filters use (SI)."""
+        est = self.estimator
+        scale = math.sqrt(self.dt_s) if est.sigma_x_basis == "sqrt_second" else 1.0
+        return tuple(v * scale for v in est.sigma_x)
 
     @property
     def steps(self) -> int:
@@ -379,6 +386,7 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
         linear_matrices=e.pop("linear_matrices", "string", "printed",
                               choices=("printed", "derived")),
         sigma_x=sigma_x, x0_sigma=x0_sigma,
+        sigma_x_basis=e.pop("sigma_x_basis", "string", "step", choices=("step", "sqrt_second")),
         resample_threshold=e.pop("resample_threshold", "number", 0.5, unit_interval=True),
         bandwidth=bw,
         bandwidth_k=e.pop("bandwidth_k", "number", 0.2, positive=True),

@@ -2,9 +2,14 @@
 
 Vectorised over leading axes: z has shape (..., 5) = [p_d, u, w, theta, q] and u has shape
 (..., 2) = [delta_e rad, delta_t 0..1]; the result has the shape of z. No wind, so Va = |(u, w)|.
+`derivatives_rows` is the same right-hand side on separate component arrays (state-major
+layout), which is what the particle filters call: every operation then runs on contiguous memory.
 """
 
 from __future__ import annotations
+
+from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
@@ -12,6 +17,46 @@ from fdir_service.airframe.params import AirframeParams
 
 STATE_NAMES = ("p_d", "u", "w", "theta", "q")
 INPUT_NAMES = ("delta_e", "delta_t")
+
+
+class _Consts(NamedTuple):
+    """Per-airframe constants of the right-hand side, computed once per parameter set."""
+
+    exp_2m_a0: float      # e^{2 M alpha0} = e_minus * e_plus (the stall blend needs one exp)
+    cd_k: float           # 1 / (pi e AR)
+    qbar_m: float         # rho S / (2 m)
+    thrust_k: float       # rho S_prop C_prop / (2 m)
+    kmotor2: float        # k_motor^2
+    mom_k: float          # rho S c / (2 Jy)
+    c2: float             # c / 2
+
+
+_CONSTS: dict[int, tuple[AirframeParams, _Consts]] = {}
+
+
+def _consts(p: AirframeParams) -> _Consts:
+    """Constants of p, cached by identity (hashing the 32-field dataclass costs more than a step)."""
+    hit = _CONSTS.get(id(p))
+    if hit is not None and hit[0] is p:
+        return hit[1]
+    k = _consts_of(p)
+    if len(_CONSTS) > 64:
+        _CONSTS.clear()
+    _CONSTS[id(p)] = (p, k)
+    return k
+
+
+@lru_cache(maxsize=16)
+def _consts_of(p: AirframeParams) -> _Consts:
+    return _Consts(
+        exp_2m_a0=float(np.exp(2.0 * p.M * p.alpha0)),
+        cd_k=1.0 / (np.pi * p.e * p.AR),
+        qbar_m=p.rho * p.S / (2.0 * p.m),
+        thrust_k=p.rho * p.S_prop * p.C_prop / (2.0 * p.m),
+        kmotor2=p.k_motor**2,
+        mom_k=p.rho * p.S * p.c / (2.0 * p.Jy),
+        c2=p.c / 2.0,
+    )
 
 
 def lift_drag(alpha: np.ndarray, p: AirframeParams) -> tuple[np.ndarray, np.ndarray]:
@@ -26,37 +71,111 @@ def lift_drag(alpha: np.ndarray, p: AirframeParams) -> tuple[np.ndarray, np.ndar
     return cl, cd
 
 
+def derivatives_rows(ub, wb, th, q, de, dt, p: AirframeParams):
+    """dz/dt as five arrays from the state components (ub, wb, th, q) and inputs (de, dt).
+
+    Same equations as `derivatives` (agrees to ~1e-15 relative), arranged for speed: cos/sin of
+    alpha as u/Va, w/Va; the stall blend with one exponential (e_minus e_plus = e^{2 M alpha0}).
+    Arguments broadcast together; returns (p_d', u', w', theta', q') (theta' is q itself).
+    """
+    k = _consts(p)
+    shape = np.broadcast_shapes(np.shape(ub), np.shape(wb), np.shape(th), np.shape(q),
+                                np.shape(de), np.shape(dt))
+    scalar = shape == ()
+    if scalar or np.shape(ub) != shape or np.shape(wb) != shape:
+        # the in-place arithmetic below needs ub, wb at the full (at least 1-d) shape
+        full = shape or (1,)
+        ub = np.broadcast_to(np.asarray(ub, dtype=float), full)
+        wb = np.broadcast_to(np.asarray(wb, dtype=float), full)
+        if scalar:
+            rows = derivatives_rows(ub, wb, np.reshape(th, 1), np.reshape(q, 1), np.reshape(de, 1),
+                                    np.reshape(dt, 1), p)
+            return tuple(np.float64(r[0]) for r in rows)
+    va2 = ub * ub
+    va2 += wb * wb
+    va = np.sqrt(va2)
+    inv_va = np.maximum(va, 1e-3)
+    np.divide(1.0, inv_va, out=inv_va)
+    alpha = np.arctan2(wb, ub)
+    ca = ub * inv_va
+    sa = wb * inv_va
+    if np.min(va) < 1e-3:  # below 1 mm/s: exact cos/sin of atan2 (atan2(0, 0) = 0)
+        ca = np.where(va < 1e-3, np.cos(alpha), ca)
+        sa = np.where(va < 1e-3, np.sin(alpha), sa)
+    # Stall blend sigma(alpha) with e_minus e_plus = e^{2 M alpha0}; alpha in [-pi, pi] keeps the
+    # exponent within [-140, 190], so no clipping is needed. In-place operations from here on
+    # (fewer temporaries: ~15 % faster at N = 1000).
+    e_minus = alpha - p.alpha0
+    e_minus *= -p.M
+    np.exp(e_minus, out=e_minus)
+    s1 = k.exp_2m_a0 / e_minus
+    s1 += e_minus
+    s1 += 1.0
+    sigma = s1 + k.exp_2m_a0
+    np.divide(s1, sigma, out=sigma)
+    cl_lin = alpha * p.C_La
+    cl_lin += p.C_L0
+    # flat-plate lift 2 sign(a) sin^2(a) cos(a) = 2 sin(a) |sin(a)| cos(a) for a in [-pi, pi]
+    cl = np.abs(sa)
+    cl *= sa
+    cl *= ca
+    cl *= 2.0
+    cl -= cl_lin
+    cl *= sigma
+    cl += cl_lin
+    cd = cl_lin * cl_lin
+    cd *= k.cd_k
+    cd += p.C_Dp
+    qc = q * inv_va
+    qc *= k.c2
+    # Body-axis forces per unit mass (SPEC section 2), grouped by lift and drag; zero
+    # coefficients (C_Lq, C_Dq, C_Dde of the Aerosonde) cost nothing.
+    lift = cl
+    if p.C_Lq:
+        lift = lift + p.C_Lq * qc
+    if p.C_Lde:
+        lift = lift + p.C_Lde * de
+    drag = cd
+    if p.C_Dq:
+        drag = drag + p.C_Dq * qc
+    if p.C_Dde:
+        drag = drag + p.C_Dde * de
+    qbar_m = va2 * k.qbar_m
+    fx = lift * sa
+    fx -= drag * ca
+    fx *= qbar_m
+    fz = drag * sa
+    fz += lift * ca
+    fz *= qbar_m
+    sth = np.sin(th)
+    cth = np.cos(th)
+    d_pd = cth * wb
+    d_pd -= sth * ub
+    d_u = va2 * (-k.thrust_k)
+    d_u += k.thrust_k * k.kmotor2 * dt * dt
+    d_u -= p.g * sth
+    d_u += fx
+    d_u -= q * wb
+    d_w = q * ub
+    d_w += p.g * cth
+    d_w -= fz
+    mom = alpha * p.C_ma
+    mom += p.C_m0
+    mom += p.C_mq * qc
+    mom += p.C_mde * de
+    d_q = va2 * k.mom_k
+    d_q *= mom
+    return d_pd, d_u, d_w, q, d_q
+
+
 def derivatives(z: np.ndarray, u: np.ndarray, p: AirframeParams) -> np.ndarray:
     """dz/dt for state z (..., 5) and input u (..., 2); SI units."""
     z = np.asarray(z, dtype=float)
     u = np.asarray(u, dtype=float)
-    ub, wb, th, q = z[..., 1], z[..., 2], z[..., 3], z[..., 4]
-    de, dt = u[..., 0], u[..., 1]
-    va = np.sqrt(ub * ub + wb * wb)
-    va_safe = np.maximum(va, 1e-3)
-    alpha = np.arctan2(wb, ub)
-    ca, sa = np.cos(alpha), np.sin(alpha)
-    cl, cd = lift_drag(alpha, p)
-    # Body-axis force coefficients (SPEC section 2).
-    cx = -cd * ca + cl * sa
-    cxq = -p.C_Dq * ca + p.C_Lq * sa
-    cxde = -p.C_Dde * ca + p.C_Lde * sa
-    cz = -cd * sa - cl * ca
-    czq = -p.C_Dq * sa - p.C_Lq * ca
-    czde = -p.C_Dde * sa - p.C_Lde * ca
-    qbar_m = p.rho * va * va * p.S / (2.0 * p.m)
-    qc = p.c * q / (2.0 * va_safe)
-    thrust = p.rho * p.S_prop * p.C_prop / (2.0 * p.m) * ((p.k_motor * dt) ** 2 - va * va)
-    sth, cth = np.sin(th), np.cos(th)
+    rows = derivatives_rows(z[..., 1], z[..., 2], z[..., 3], z[..., 4], u[..., 0], u[..., 1], p)
     out = np.empty(np.broadcast_shapes(z.shape, u.shape[:-1] + (5,)))
-    out[..., 0] = -sth * ub + cth * wb
-    out[..., 1] = -q * wb - p.g * sth + qbar_m * (cx + cxq * qc + cxde * de) + thrust
-    out[..., 2] = q * ub + p.g * cth + qbar_m * (cz + czq * qc + czde * de)
-    out[..., 3] = q
-    out[..., 4] = (
-        p.rho * va * va * p.S * p.c / (2.0 * p.Jy)
-        * (p.C_m0 + p.C_ma * alpha + p.C_mq * qc + p.C_mde * de)
-    )
+    for i, r in enumerate(rows):
+        out[..., i] = r
     return out
 
 

@@ -1,0 +1,182 @@
+"""`fdir run`'s loop: sockets (pymavlink mavutil URLs), signals, and the `Pipeline` in between.
+
+Reads raw bytes from the autopilot link (`--master`), feeds them to the pipeline with the wall
+receive time, and writes whatever it returns back on the autopilot link and to every `--gcs`
+endpoint (one datagram per read). When no frame has produced a HEARTBEAT for a heartbeat period
+of wall time (autopilot silent, or just started) it sends one itself, so a ground station sees
+the service alive. SIGINT/SIGTERM stop the loop; the pipeline and recorder are closed cleanly.
+
+Link supervision: no input bytes for `health.link_timeout_s` of wall time after input had
+started = link lost (STATUSTEXT, HEARTBEAT CRITICAL); the first bytes after it = restored.
+Binding: a `udpin:HOST:PORT` link binds exactly HOST:PORT; a `udpout:` link's socket is
+connected to its destination (the kernel gives it the local address of that route, and it
+accepts datagrams from that peer only); nothing else is opened. Replies on a `udpin:` autopilot
+link go only to senders whose datagrams contained accepted input (not to anyone who sends bytes).
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+
+from fdir_service.pipeline import Pipeline
+
+
+def open_link(url: str, *, source_system: int = 1, source_component: int = 191):
+    """A pymavlink mavutil connection (udpin:, udpout:, tcp:, tcpin:, serial device) for raw I/O."""
+    os.environ.setdefault("MAVLINK20", "1")
+    from pymavlink import mavutil
+
+    conn = mavutil.mavlink_connection(url, source_system=source_system,
+                                      source_component=source_component, autoreconnect=True)
+    if isinstance(conn, mavutil.mavudp) and not conn.udp_server:
+        import socket
+
+        host, port = conn.destination_addr
+        try:
+            conn.port.connect((socket.gethostbyname(host), int(port)))
+        except OSError:
+            pass  # unreachable now: the kernel binds on first send, as pymavlink would
+    return conn
+
+
+def _fileno(conn) -> int | None:
+    port = getattr(conn, "port", None)
+    if port is not None and hasattr(port, "fileno"):
+        try:
+            return port.fileno()
+        except (OSError, ValueError):
+            return None
+    fd = getattr(conn, "fd", None)
+    return fd if isinstance(fd, int) else None
+
+
+class Daemon:
+    """Runs a `Pipeline` between an autopilot link and ground-station links until stopped."""
+
+    def __init__(self, pipeline: Pipeline, master: str, gcs: tuple[str, ...] = (),
+                 log: Callable[[str], None] | None = None) -> None:
+        self.pipeline = pipeline
+        self.master_url = master
+        self.gcs_urls = tuple(gcs)
+        self.log = log or (lambda s: print(s, file=sys.stderr, flush=True))
+        self.stop_event = threading.Event()
+        self.master = open_link(master, source_component=pipeline.config.component)
+        self.gcs = [open_link(u, source_component=pipeline.config.component) for u in self.gcs_urls]
+        self.bytes_in = 0
+        self.bytes_out = 0
+        self.send_errors = 0
+        self.last_input = time.monotonic()
+        self.link_lost_events = 0
+        self._trusted_peers: set = set()
+
+    def stop(self, *_args) -> None:
+        self.stop_event.set()
+
+    def _send(self, data: bytes) -> None:
+        for conn in [self.master, *self.gcs]:
+            try:
+                conn.write(data)
+                self.bytes_out += len(data)
+            except OSError:
+                self.send_errors += 1
+
+    def run(self, *, install_signals: bool = True, max_seconds: float | None = None) -> int:
+        """Serve until SIGINT/SIGTERM (or `stop()`, or max_seconds of wall time); returns 0."""
+        if install_signals:
+            old = {s: signal.signal(s, self.stop) for s in (signal.SIGINT, signal.SIGTERM)}
+        hb_period = self.pipeline.config.publish.heartbeat_period_s
+        link_timeout = self.pipeline.config.health.link_timeout_s
+        last_frames, last_progress, last_idle_hb = -1, -1e9, -1e9
+        t_end = None if max_seconds is None else time.monotonic() + max_seconds
+        self.log(f"fdir: {self.pipeline.filter_name} N={self.pipeline.particles} on scenario "
+                 f"{self.pipeline.scenario.id}; autopilot link {self.master_url}"
+                 + (f"; ground stations {', '.join(self.gcs_urls)}" if self.gcs_urls else "")
+                 + ("; signing on" if self.pipeline.signed else ""))
+        try:
+            while not self.stop_event.is_set():
+                now = time.monotonic()
+                if t_end is not None and now >= t_end:
+                    break
+                fds = [fd for fd in (_fileno(self.master),) if fd is not None]
+                if fds:
+                    try:
+                        ready, _, _ = select.select(fds, [], [], 0.1)
+                    except InterruptedError:
+                        continue
+                else:  # e.g. a link without a pollable descriptor
+                    ready = [None]
+                    time.sleep(0.001)
+                if ready:
+                    self._drain_master()
+                now = time.monotonic()
+                if self.pipeline.frames != last_frames:
+                    last_frames, last_progress = self.pipeline.frames, now
+                silent = now - self.last_input
+                if self.bytes_in and not self.pipeline.link_lost and silent >= link_timeout:
+                    self.link_lost_events += 1
+                    self.log(f"fdir: link lost: no input for {silent:.1f} s")
+                    self._send(b"".join(self.pipeline.set_link_lost(True, silent, time.time_ns())))
+                if (self.bytes_in and now - last_progress >= hb_period
+                        and now - last_idle_hb >= hb_period):
+                    last_idle_hb = now
+                    self._send(self.pipeline.heartbeat(time.time_ns()))
+        finally:
+            tail = self.pipeline.close(time.time_ns())
+            if tail:
+                self._send(b"".join(tail))
+            if install_signals:
+                for s, h in old.items():
+                    signal.signal(s, h)
+            for conn in [self.master, *self.gcs]:
+                try:
+                    conn.close()
+                except OSError:
+                    pass
+            counts = self.pipeline.rejected_counts
+            self.log(f"fdir: stopped after {self.pipeline.frames} frames; "
+                     f"{self.bytes_in} bytes in, {self.bytes_out} bytes out; rejected input: "
+                     + (", ".join(f"{k} {v}" for k, v in sorted(counts.items())) or "none"))
+        return 0
+
+    def _drain_master(self) -> None:
+        for _ in range(1000):  # bounded: keep heartbeats and signals serviced under a flood
+            try:
+                data = self.master.recv(65536)
+            except OSError:
+                return
+            if not data:
+                return
+            if isinstance(data, str):
+                data = data.encode("latin-1")
+            now = time.monotonic()
+            if self.pipeline.link_lost:
+                silent = now - self.last_input
+                self.log(f"fdir: link restored after {silent:.1f} s")
+                self._send(b"".join(self.pipeline.set_link_lost(False, silent, time.time_ns())))
+            self.last_input = now
+            self.bytes_in += len(data)
+            accepted = self.pipeline.accepted_messages
+            out = self.pipeline.feed(data, time.time_ns())
+            self._vet_peer(self.pipeline.accepted_messages > accepted)
+            if out:
+                self._send(b"".join(out))
+
+    def _vet_peer(self, accepted: bool) -> None:
+        """Keep a udpin link's reply list to senders that delivered accepted input."""
+        clients = getattr(self.master, "clients", None)
+        if not isinstance(clients, set):
+            return
+        if accepted:
+            self._trusted_peers |= clients
+        else:
+            clients &= self._trusted_peers
+            alive = getattr(self.master, "clients_last_alive", None)
+            if isinstance(alive, dict):
+                for a in [a for a in alive if a not in clients]:
+                    del alive[a]

@@ -1,0 +1,287 @@
+"""`make demo` (`python -m fdir_service.demo`): the simulator, the service and a ground station.
+
+Starts `fdir run` (recording an MCAP) and `sim-bridge fly ch4` several times faster than real
+time with the autopilot flying on the service's estimate, listens on UDP as a ground station
+would (pymavlink), shows the fault estimates, P(fault), Pfa and Pmd live (a redrawn table on a
+terminal, periodic plain lines otherwise), and ends with a summary: detection delays, estimate
+errors, and where the logs are.
+
+`GroundStation` is also what the end-to-end tests listen with.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fdir_service.mavlink import new_mavlink
+
+
+def free_udp_port(host: str = "127.0.0.1") -> int:
+    """A UDP port nobody is bound to right now on host."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+@dataclass
+class GroundStation:
+    """A ground-station listener on udpin:HOST:PORT (pymavlink mavutil socket, fdir dialect parser).
+
+    Collected, by the autopilot's frame time t (s) the service stamped on each message:
+    values[name] -> [(t, value)] from NAMED_VALUE_FLOAT; statustexts -> [(t, severity, text)],
+    dated by the FDIR_ESTIMATE that precedes them; estimates -> [(t, msg)]; heartbeats count.
+    """
+
+    port: int
+    host: str = "127.0.0.1"
+    key: bytes | None = None
+    values: dict[str, list[tuple[float, float]]] = field(default_factory=lambda: defaultdict(list))
+    statustexts: list[tuple[float, int, str]] = field(default_factory=list)
+    estimates: list[tuple[float, object]] = field(default_factory=list)
+    heartbeats: int = 0
+    bad: int = 0
+
+    def __post_init__(self) -> None:
+        from fdir_service.daemon import open_link
+
+        self.conn = open_link(f"udpin:{self.host}:{self.port}", source_system=255, source_component=190)
+        self.mav = new_mavlink(255, 190, key=self.key)
+        self.last_t = math.nan
+
+    def poll(self, timeout: float = 0.1) -> int:
+        """Read whatever arrived within timeout (s); returns the number of messages decoded."""
+        import select
+
+        ready, _, _ = select.select([self.conn.port.fileno()], [], [], timeout)
+        n = 0
+        while ready:
+            data = self.conn.recv(65536)
+            if not data:
+                break
+            if isinstance(data, str):
+                data = data.encode("latin-1")
+            for msg in self.mav.parse_buffer(data) or []:
+                n += 1
+                self._take(msg)
+        return n
+
+    def _take(self, msg) -> None:
+        mt = msg.get_type()
+        if mt == "BAD_DATA":
+            self.bad += 1
+        elif mt == "FDIR_ESTIMATE":
+            self.last_t = msg.time_boot_ms / 1000.0
+            self.estimates.append((self.last_t, msg))
+        elif mt == "NAMED_VALUE_FLOAT":
+            name = msg.name.decode() if isinstance(msg.name, bytes) else msg.name
+            self.values[name].append((msg.time_boot_ms / 1000.0, float(msg.value)))
+        elif mt == "STATUSTEXT":
+            text = msg.text.decode() if isinstance(msg.text, bytes) else msg.text
+            self.statustexts.append((self.last_t, int(msg.severity), text))
+        elif mt == "HEARTBEAT":
+            self.heartbeats += 1
+
+    def series(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t (k,), value (k,)) of a NAMED_VALUE_FLOAT name."""
+        v = self.values.get(name, [])
+        return np.array([a for a, _ in v]), np.array([b for _, b in v])
+
+    def declarations(self, fault_id: str) -> list[float]:
+        """Frame times (s) of the STATUSTEXTs declaring fault_id."""
+        return [t for t, _, txt in self.statustexts if txt.startswith(f"FDIR {fault_id} fault ")]
+
+    def close(self) -> None:
+        self.conn.close()
+
+
+# ----------------------------------------------------------------------------- the demo
+
+def _python() -> str:
+    return sys.executable
+
+
+def _view_line(gs: GroundStation, fault_ids: list[str]) -> str:
+    t = gs.last_t
+    parts = [f"t={t:6.2f}s" if math.isfinite(t) else "t=  --  "]
+    for fid in fault_ids:
+        def last(name: str) -> float:
+            v = gs.values.get(name)
+            return v[-1][1] if v else math.nan
+        decl = "DECLARED" if gs.declarations(fid) and _declared_now(gs, fid) else "ok"
+        parts.append(f"{fid}: f={last('f_' + fid):+7.2f} P={last('pf_' + fid):4.2f} "
+                     f"Pfa={last('pfa_' + fid):4.2f} Pmd={last('pmd_' + fid):4.2f} {decl:8s}")
+    return " | ".join(parts)
+
+
+def _declared_now(gs: GroundStation, fid: str) -> bool:
+    state = False
+    for _, _, txt in gs.statustexts:
+        if txt.startswith(f"FDIR {fid} fault "):
+            state = True
+        elif txt.startswith(f"FDIR {fid} cleared"):
+            state = False
+    return state
+
+
+def _declared_at(gs: GroundStation, fid: str, t: float) -> bool:
+    state = False
+    for ts, _, txt in gs.statustexts:
+        if ts > t:
+            break
+        if txt.startswith(f"FDIR {fid} fault "):
+            state = True
+        elif txt.startswith(f"FDIR {fid} cleared"):
+            state = False
+    return state
+
+
+def summary(gs: GroundStation, scenario, alt_err_m: float | None = None) -> list[str]:
+    """Detection delays (first declaring STATUSTEXT after onset) and estimate errors per fault."""
+    from fdir_service.scenario import Scenario  # noqa: F401  (type of `scenario`)
+
+    lines = []
+    for f in scenario.faults:
+        if not f.profile:
+            continue
+        onset = min(c.start_s for c in f.profile)
+        end = max(c.end_s for c in f.profile)
+        decl = [t for t in gs.declarations(f.id) if t >= onset - 1e-9]
+        early = [t for t in gs.declarations(f.id) if t < onset - 1e-9]
+        if decl:
+            delay = f"declared after {decl[0] - onset:.2f} s"
+        elif early and _declared_at(gs, f.id, onset):
+            delay = f"already declared at onset (since {early[-1]:.2f} s)"
+        else:
+            delay = "not declared"
+        t, v = gs.series(f"f_{f.id}")
+        sel = (t >= onset + 2.0) & (t < end)
+        if sel.any():
+            truth = np.array([sum(_profile_value(c, ti) for c in f.profile) for ti in t[sel]])
+            err = np.abs(v[sel] - truth) / f.unit_scale
+            est = (f"mean |error| {err.mean():.2f} {f.unit}, max {err.max():.2f} {f.unit} "
+                   f"({onset + 2:g}-{end:g} s)")
+        else:
+            est = "no estimates received in the fault window"
+        lines.append(f"  {f.id:8s} onset {onset:5.1f} s: {delay}; {est}"
+                     + (f"; {len(early)} declaration(s) before onset" if early else ""))
+    if alt_err_m is not None:
+        lines.append(f"  altitude: max |h - 500 m| = {alt_err_m:.2f} m while flying on the estimate")
+    return lines
+
+
+def _profile_value(c, t: float) -> float:
+    if not c.start_s <= t < c.end_s:
+        return 0.0
+    if c.shape == "step":
+        return c.amplitude
+    if c.shape == "exponential":
+        return c.amplitude * math.exp((t - c.end_s) / c.tau_s)
+    if c.shape == "ramp":
+        return c.amplitude * (t - c.start_s) / (c.end_s - c.start_s)
+    period = c.on_s + c.off_s
+    return c.amplitude if ((t - c.start_s) % period) < c.on_s else 0.0
+
+
+def max_altitude_error(truth_path: Path, command_m: float) -> float | None:
+    try:
+        from fdir_service.recording.logtools import McapLog
+
+        recs = [r for _, r in McapLog(truth_path).iter_json("/sim/truth")]
+    except Exception:  # noqa: BLE001 - the summary works without the truth log
+        return None
+    if not recs:
+        return None
+    return max(abs(r["h"] - command_m) for r in recs)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m fdir_service.demo", description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default="ch4")
+    ap.add_argument("--speed", type=float, default=5.0, help="times real time (default 5)")
+    ap.add_argument("--filter", default=None, help="estimator (default: config/service.toml)")
+    ap.add_argument("--particles", type=int, default=None)
+    ap.add_argument("--nav", choices=("truth", "fdir"), default="fdir")
+    ap.add_argument("--out", type=Path, default=Path(os.environ.get("FDIR_DEMO_DIR", "demo-output")),
+                    help="where the MCAP logs go (default ./demo-output)")
+    args = ap.parse_args(argv)
+
+    from fdir_service.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    fault_ids = [f.id for f in scenario.faults]
+    args.out.mkdir(parents=True, exist_ok=True)
+    stamp = time.strftime("%Y%m%dT%H%M%S")
+    log_path = (args.out / f"fdir-demo-{stamp}.mcap").resolve()
+    truth_path = (args.out / f"truth-demo-{stamp}.mcap").resolve()
+    p_ap, p_gcs = free_udp_port(), free_udp_port()
+    gs = GroundStation(p_gcs)
+    tty = sys.stdout.isatty()
+    print(f"demo: scenario {scenario.id}, {args.speed:g}x real time, autopilot flying on the "
+          f"{'FDIR estimate' if args.nav == 'fdir' else 'true state'}; ground station on udp {p_gcs}",
+          flush=True)
+    fdir_cmd = [_python(), "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
+                "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log_path)]
+    if args.filter:
+        fdir_cmd += ["--filter", args.filter]
+    if args.particles:
+        fdir_cmd += ["--particles", str(args.particles)]
+    sim_cmd = [_python(), "-m", "sim_bridge.cli", "fly", args.scenario, "--to", f"udpout:127.0.0.1:{p_ap}",
+               "--speed", str(args.speed), "--nav", args.nav, "--record", str(truth_path), "--wait", "60"]
+    service = subprocess.Popen(fdir_cmd, stderr=subprocess.PIPE, text=True)
+    sim = subprocess.Popen(sim_cmd, stderr=subprocess.PIPE, text=True)
+    last_print_t, last_draw = -1e9, 0.0
+    try:
+        while sim.poll() is None:
+            gs.poll(0.05)
+            now = time.monotonic()
+            if tty and now - last_draw > 0.2:
+                last_draw = now
+                width = os.get_terminal_size().columns - 1
+                sys.stdout.write("\r\x1b[2K" + _view_line(gs, fault_ids)[:width])
+                sys.stdout.flush()
+            elif not tty and math.isfinite(gs.last_t) and gs.last_t - last_print_t >= 5.0:
+                last_print_t = gs.last_t
+                print(_view_line(gs, fault_ids), flush=True)
+            while gs.statustexts and len(gs.statustexts) > getattr(gs, "_shown", 0):
+                t, _, txt = gs.statustexts[getattr(gs, "_shown", 0)]
+                gs._shown = getattr(gs, "_shown", 0) + 1
+                print(("\r\x1b[2K" if tty else "") + f"[t={t:6.2f}s] STATUSTEXT {txt}", flush=True)
+        deadline = time.monotonic() + 1.0
+        while time.monotonic() < deadline:
+            gs.poll(0.05)
+    except KeyboardInterrupt:
+        sim.send_signal(signal.SIGINT)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            service.send_signal(signal.SIGINT)
+        _, service_err = service.communicate(timeout=30)
+        _, sim_err = sim.communicate(timeout=30)
+        gs.close()
+    if tty:
+        print()
+    print(_view_line(gs, fault_ids))
+    print("summary:")
+    for line in summary(gs, scenario, max_altitude_error(truth_path, scenario.command.altitude_m)):
+        print(line)
+    for line in (sim_err + service_err).splitlines():
+        if line.startswith(("sim-bridge:", "fdir:")):
+            print("  " + line)
+    print(f"logs: {log_path} (service: fdir log info / fdir replay)\n      {truth_path} (truth)")
+    return 0 if service.returncode == 0 and sim.returncode == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

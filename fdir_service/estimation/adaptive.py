@@ -1,0 +1,89 @@
+"""Adaptive transition matrix of the AJMRPF (thesis ch. 6, SPEC section 6).
+
+For each fault j and step k, two hypothesis tests on the fault's residual with the last n
+(`saddlepoint_window`) hypothesis means: H0 mean 0 against H1 mean mu1|0 (weighted mean of the
+predicted amplitude A_f over mode-0 particles: where a sentinel would go) gives Pfa; H0 against
+mu1|1 (weighted mean of f_j over mode-1 particles) gives Pmd. Both use the fault's sigma (the
+measurement's assumed noise for a sensor fault; the amplitude estimate's standard deviation for
+an actuator fault). Each is the optimum of the saddlepoint ROC search
+`saddlepoint.roc_optimal(mu0, s0, mu1, s1)`. Then eq. 6.1/6.76:
+pi00 = phi_fa(Pfa), pi01 = 1 - pi00, pi11 = phi_md(Pmd), pi10 = 1 - pi11.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from fdir_service.estimation.jump import transition_matrices
+
+
+def phi_fa(x: np.ndarray) -> np.ndarray:
+    """Activation for pi00 (eq. 6.76): 0.5 / (1 + exp(20 (0.1 - x))) + 0.5."""
+    return 0.5 / (1.0 + np.exp(20.0 * (0.1 - np.asarray(x, dtype=float)))) + 0.5
+
+
+def phi_md(x: np.ndarray) -> np.ndarray:
+    """Activation for pi11 (eq. 6.76): 1 - 0.5 / (1 + exp(20 (0.1 - x)))."""
+    return 1.0 - 0.5 / (1.0 + np.exp(20.0 * (0.1 - np.asarray(x, dtype=float))))
+
+
+def _default_roc() -> Callable:
+    from fdir_service.estimation.saddlepoint import roc_optimal
+    return roc_optimal
+
+
+class AdaptiveTransition:
+    """Per-fault transition matrices recomputed every step from Pfa and Pmd.
+
+    sigma (nf,): residual standard deviation per fault (SI); window: n samples kept (thesis 3);
+    roc: `roc_optimal(mu0, s0, mu1, s1, n_alpha) -> (pfa, pmd, alpha)` (default: the saddlepoint
+    module). Until the window fills, the samples seen so far are used.
+    """
+
+    adaptive = True
+
+    def __init__(self, sigma: np.ndarray, window: int = 3, n_alpha: int = 50,
+                 roc: Callable | None = None, pi01: float = 0.01, pi10: float = 0.01) -> None:
+        self.sigma = np.asarray(sigma, dtype=float).copy()
+        nf = self.sigma.size
+        self.window = int(window)
+        self.n_alpha = int(n_alpha)
+        self._roc = roc
+        self._mu10 = np.zeros((nf, self.window))
+        self._mu11 = np.zeros((nf, self.window))
+        self._count = 0
+        self._next = 0
+        self._s = np.repeat(self.sigma[:, None], self.window, axis=1)
+        self._zero = np.zeros(self.window)
+        self.pi01 = np.full(nf, float(pi01))
+        self.pi10 = np.full(nf, float(pi10))
+        self.pfa = np.full(nf, 0.5)
+        self.pmd = np.full(nf, 0.5)
+
+    def matrices(self) -> np.ndarray:
+        """(nf, 2, 2) transition matrices in force."""
+        return transition_matrices(self.pi01, self.pi10)
+
+    def update(self, mu10: np.ndarray, mu11: np.ndarray) -> None:
+        """Push this step's H1 means (nf,) and recompute pfa, pmd, pi01, pi10 (nf,)."""
+        if self._roc is None:
+            self._roc = _default_roc()
+        # ring buffer: column (count mod window) holds the newest sample; the order of the samples
+        # does not matter to the test statistic (a mean over the window)
+        slot = self._next % self.window
+        self._next += 1
+        self._mu10[:, slot] = mu10
+        self._mu11[:, slot] = mu11
+        self._count = min(self._count + 1, self.window)
+        k = self._count
+        for j in range(self.sigma.size):
+            s = self._s[j, :k]
+            zero = self._zero[:k]
+            pfa = float(self._roc(zero, s, self._mu10[j, :k], s, self.n_alpha)[0])
+            pmd = float(self._roc(zero, s, self._mu11[j, :k], s, self.n_alpha)[1])
+            self.pfa[j] = min(max(pfa, 0.0), 1.0) if pfa == pfa else 0.5   # NaN -> no evidence
+            self.pmd[j] = min(max(pmd, 0.0), 1.0) if pmd == pmd else 0.5
+        self.pi01 = 1.0 - phi_fa(self.pfa)
+        self.pi10 = 1.0 - phi_md(self.pmd)

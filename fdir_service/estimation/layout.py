@@ -1,0 +1,76 @@
+"""Fault layout: which extended-state entries are faults, and where each one acts (SPEC section 5).
+
+The extended state is x = [z (5,), f (nf,)] with z = [p_d, u, w, theta, q] and one fault entry
+per scenario fault channel, in the scenario file's order. A sensor fault adds to one measurement
+row; an actuator fault adds to one input (it enters the dynamics like that input).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fdir_service.scenario import ACTUATORS, Scenario
+
+N_AIRFRAME = 5
+"""Airframe states in the extended state: [p_d, u, w, theta, q]."""
+
+
+@dataclass(frozen=True)
+class FaultLayout:
+    """Fault channels of an extended state.
+
+    fault_ids, kinds ("sensor" | "actuator"), targets (measurement or input name) per fault;
+    measurements: the scenario's measurement names (row order of the measurement model).
+    """
+
+    fault_ids: tuple[str, ...]
+    kinds: tuple[str, ...]
+    targets: tuple[str, ...]
+    measurements: tuple[str, ...]
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario) -> FaultLayout:
+        return cls(tuple(f.id for f in scenario.faults), tuple(f.kind for f in scenario.faults),
+                   tuple(f.target for f in scenario.faults), tuple(scenario.sensors.measurements))
+
+    @property
+    def nf(self) -> int:
+        """Number of fault channels."""
+        return len(self.fault_ids)
+
+    @property
+    def n(self) -> int:
+        """Extended-state size 5 + nf."""
+        return N_AIRFRAME + self.nf
+
+    @property
+    def fault_index(self) -> np.ndarray:
+        """(nf,) extended-state index of each fault entry."""
+        return np.arange(N_AIRFRAME, self.n)
+
+    @property
+    def is_sensor(self) -> np.ndarray:
+        """(nf,) bool, True for a sensor fault."""
+        return np.array([k == "sensor" for k in self.kinds], dtype=bool)
+
+    @property
+    def sensor_row(self) -> np.ndarray:
+        """(nf,) measurement-row index of each sensor fault (-1 for actuator faults)."""
+        return np.array([self.measurements.index(t) if k == "sensor" else -1
+                         for k, t in zip(self.kinds, self.targets, strict=True)], dtype=int)
+
+    @property
+    def actuator_input(self) -> np.ndarray:
+        """(nf,) input index (0 delta_e, 1 delta_t) of each actuator fault (-1 for sensor faults)."""
+        return np.array([ACTUATORS.index(t) if k == "actuator" else -1
+                         for k, t in zip(self.kinds, self.targets, strict=True)], dtype=int)
+
+    def input_matrix(self) -> np.ndarray:
+        """(2, nf) map from fault entries to the input they add to: u_eff = u + G f."""
+        G = np.zeros((len(ACTUATORS), self.nf))
+        for j, i in enumerate(self.actuator_input):
+            if i >= 0:
+                G[i, j] = 1.0
+        return G

@@ -1,0 +1,68 @@
+"""Linear measurement model y = H x + v on the extended state, with a per-step availability mask.
+
+Rows follow the scenario's measurement list (SPEC section 3): altitudes measure -p_d, the others
+their own state; a sensor fault adds its fault entry to its row. The filters assume the noise
+`scenario.sensors.filter_sigma()` (1.5x the true sigma), R = diag(sigma^2). A mask (m,) bool
+keeps the rows that arrived; `reduced(mask)` is the model of those rows only (cached per mask).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fdir_service.estimation.layout import FaultLayout
+
+MEASURED_STATE = {"gnss_alt": (0, -1.0), "baro_alt": (0, -1.0), "u": (1, 1.0), "w": (2, 1.0),
+                  "theta": (3, 1.0), "q": (4, 1.0)}
+"""measurement name -> (airframe-state index, coefficient)."""
+
+
+@dataclass
+class MeasurementModel:
+    """names (m,), H (m, n), sigma (m,) SI; R = diag(sigma^2)."""
+
+    names: tuple[str, ...]
+    H: np.ndarray
+    sigma: np.ndarray
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def build(cls, layout: FaultLayout, sigma: np.ndarray | list[float]) -> MeasurementModel:
+        """The model of `layout.measurements` with sensor-fault columns; sigma (m,) SI."""
+        m = len(layout.measurements)
+        H = np.zeros((m, layout.n))
+        for r, name in enumerate(layout.measurements):
+            col, coef = MEASURED_STATE[name]
+            H[r, col] = coef
+        for j, r in enumerate(layout.sensor_row):
+            if r >= 0:
+                H[r, layout.fault_index[j]] = 1.0
+        return cls(tuple(layout.measurements), H, np.asarray(sigma, dtype=float).copy())
+
+    @property
+    def m(self) -> int:
+        return len(self.names)
+
+    def __post_init__(self) -> None:
+        self.R = np.diag(self.sigma**2)
+        """(m, m) measurement noise covariance."""
+        self.inv_sigma = 1.0 / self.sigma
+
+    def reduced(self, mask: np.ndarray) -> MeasurementModel:
+        """The model of the rows where mask is True (the full model when all rows arrived)."""
+        mask = np.asarray(mask, dtype=bool)
+        if mask.all():
+            return self
+        key = mask.tobytes()
+        sub = self._cache.get(key)
+        if sub is None:
+            sub = MeasurementModel(tuple(n for n, k in zip(self.names, mask, strict=True) if k),
+                                   self.H[mask].copy(), self.sigma[mask].copy())
+            self._cache[key] = sub
+        return sub
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """Predicted measurements (m, N) of a state-major cloud X (n, N); or (m,) of x (n,)."""
+        return self.H @ X

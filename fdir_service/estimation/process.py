@@ -1,0 +1,132 @@
+"""Process models on the extended state x = [z, f], state-major clouds X (n, N) (SPEC section 5).
+
+Fault entries follow a zero-order (random-walk) model: the deterministic step leaves them as they
+are; process noise is added by the filter. An actuator fault f_j adds to its input, so the
+airframe sees u_eff = u + G f (G from the fault layout), exactly like the input itself.
+
+- `LinearProcess`: z_{k+1} = z* + F (z - z*) + B (u_eff - u*) with a `LinearModel` (F, B about
+  trim), as one (n, n) matrix product plus a constant: X <- F_ext X + c(u).
+- `NonlinearProcess`: the airframe's `derivatives_rows` integrated over dt by the integrator
+  chosen in `INTEGRATORS`. The default is "expeuler": x+ = x + Phi f(x, u_eff) with
+  Phi = int_0^dt e^{A s} ds for the trim Jacobian A (one right-hand-side evaluation per step,
+  exact for the linearised dynamics; see docs/estimation.md for the accuracy/cost table).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import expm
+
+from fdir_service.airframe.dynamics import derivatives_rows
+from fdir_service.airframe.linearize import LinearModel, jacobians
+from fdir_service.airframe.params import AirframeParams
+from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+
+INTEGRATORS = ("expeuler", "euler", "heun", "rk4")
+
+
+class LinearProcess:
+    """Linear discrete model about trim on the extended state (faults: random walk)."""
+
+    kind = "linear"
+
+    def __init__(self, model: LinearModel, layout: FaultLayout) -> None:
+        n, nf = layout.n, layout.nf
+        self.model = model
+        self.layout = layout
+        self.dt = model.dt
+        G = layout.input_matrix()                     # (2, nf)
+        F_ext = np.eye(n)
+        F_ext[:N_AIRFRAME, :N_AIRFRAME] = model.F
+        F_ext[:N_AIRFRAME, N_AIRFRAME:] = model.B @ G
+        self.F = F_ext                                # (n, n)
+        self.B = np.zeros((n, 2))                     # (n, 2) input matrix on the extended state
+        self.B[:N_AIRFRAME] = model.B
+        c0 = np.zeros(n)                              # constant part: (I - F) z* - B u*
+        c0[:N_AIRFRAME] = model.trim.z - model.F @ model.trim.z - model.B @ model.trim.u
+        self._c0 = c0
+        self.B_actuator = model.B @ G                 # (5, nf) airframe response to each fault entry
+        self.nf = nf
+
+    def offset(self, u: np.ndarray) -> np.ndarray:
+        """Constant term c(u) (n,) of x_{k+1} = F x_k + c(u)."""
+        return self._c0 + self.B @ np.asarray(u, dtype=float)
+
+    def propagate(self, X: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (2,)."""
+        c = self.offset(u)
+        if X.ndim == 1:
+            return self.F @ X + c
+        out = self.F @ X
+        out += c[:, None]
+        return out
+
+
+class NonlinearProcess:
+    """The nonlinear airframe (SPEC section 2) over one frame dt, vectorised over particles."""
+
+    kind = "nonlinear"
+
+    def __init__(self, params: AirframeParams, trim_z: np.ndarray, trim_u: np.ndarray, dt: float,
+                 layout: FaultLayout, integrator: str = "expeuler") -> None:
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
+        self.params = params
+        self.dt = float(dt)
+        self.layout = layout
+        self.integrator = integrator
+        self.G = layout.input_matrix()                # (2, nf)
+        self._act = [(i, np.flatnonzero(self.G[i])) for i in range(2) if self.G[i].any()]
+        A, Bc = jacobians(params, np.asarray(trim_z, float), np.asarray(trim_u, float))
+        # Phi = int_0^dt e^{A s} ds from the augmented exponential [[A, I], [0, 0]].
+        M = np.zeros((10, 10))
+        M[:5, :5] = A * dt
+        M[:5, 5:] = np.eye(5) * dt
+        E = expm(M)
+        self.Phi = E[:5, 5:]                          # (5, 5)
+        self.B_actuator = self.Phi @ Bc @ self.G      # (5, nf) one-frame response to each fault entry
+
+    def _inputs(self, X: np.ndarray, u: np.ndarray) -> tuple:
+        """delta_e, delta_t seen by each particle (scalars or (N,) rows): u + G f."""
+        de, dt = float(u[0]), float(u[1])
+        eff = [de, dt]
+        for i, cols in self._act:
+            add = X[N_AIRFRAME + cols[0]]
+            for c in cols[1:]:
+                add = add + X[N_AIRFRAME + c]
+            eff[i] = eff[i] + add
+        return eff[0], eff[1]
+
+    def _rhs(self, Z: np.ndarray, de, dtl) -> np.ndarray:
+        d = derivatives_rows(Z[1], Z[2], Z[3], Z[4], de, dtl, self.params)
+        out = np.empty(Z.shape)
+        for i, r in enumerate(d):
+            out[i] = r
+        return out
+
+    def propagate(self, X: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (2,) held over dt."""
+        one = X.ndim == 1
+        if one:
+            X = X[:, None]
+        de, dtl = self._inputs(X, u)
+        Z = X[:N_AIRFRAME]
+        h = self.dt
+        if self.integrator == "expeuler":
+            Zn = Z + self.Phi @ self._rhs(Z, de, dtl)
+        elif self.integrator == "euler":
+            Zn = Z + h * self._rhs(Z, de, dtl)
+        elif self.integrator == "heun":
+            k1 = self._rhs(Z, de, dtl)
+            k2 = self._rhs(Z + h * k1, de, dtl)
+            Zn = Z + (0.5 * h) * (k1 + k2)
+        else:
+            k1 = self._rhs(Z, de, dtl)
+            k2 = self._rhs(Z + (0.5 * h) * k1, de, dtl)
+            k3 = self._rhs(Z + (0.5 * h) * k2, de, dtl)
+            k4 = self._rhs(Z + h * k3, de, dtl)
+            Zn = Z + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        out = np.empty_like(X)
+        out[:N_AIRFRAME] = Zn
+        out[N_AIRFRAME:] = X[N_AIRFRAME:]
+        return out[:, 0] if one else out

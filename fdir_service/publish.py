@@ -1,0 +1,160 @@
+"""What the service sends: HEARTBEAT, NAMED_VALUE_FLOAT, STATUSTEXT (with hysteresis) and the
+dialect's FDIR_ESTIMATE, encoded (and signed, when a key is set) by one pymavlink codec.
+
+Every message that has a `time_boot_ms` carries the autopilot's timestamp of the frame it
+describes. Rates are counted in frame time, so a replay publishes the same messages. A STATUSTEXT
+is sent right after the FDIR_ESTIMATE of the frame that triggered it (STATUSTEXT has no time
+field; a ground station dates it by that estimate).
+
+Hysteresis (config `[publish.declare]`): a fault is declared when P(fault) >= p_declare on every
+frame for declare_hold_s of frame time, and cleared when P(fault) <= p_clear for clear_hold_s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fdir_service.estimation.base import StepOutput
+from fdir_service.ingest import AssembledFrame
+from fdir_service.mavlink import MAX_FAULTS, dialect
+from fdir_service.scenario import FaultChannel
+from fdir_service.service_config import PublishConfig
+
+_EPS_US = 1  # frame-time comparisons in us
+
+
+@dataclass
+class _Hysteresis:
+    declared: bool = False
+    since_us: int | None = None  # first frame of the current run above p_declare / below p_clear
+
+
+def statustext_for(fault: FaultChannel, estimate_si: float, p: float, declared: bool) -> str:
+    """'FDIR gnss fault +50.1 m p=0.98' / 'FDIR gnss cleared p=0.03' (estimate in the fault's unit)."""
+    if not declared:
+        return f"FDIR {fault.id} cleared p={p:.2f}"
+    val = estimate_si / fault.unit_scale
+    unit = "" if fault.unit == "1" else f" {fault.unit}"
+    return f"FDIR {fault.id} fault {val:+.1f}{unit} p={p:.2f}"
+
+
+class Publisher:
+    """Builds the output messages for each stepped frame. `mav` is the output codec (its
+    srcSystem/srcComponent and signing are used as they are)."""
+
+    def __init__(self, config: PublishConfig, faults: tuple[FaultChannel, ...], mav: dialect.MAVLink,
+                 adaptive: bool) -> None:
+        if len(faults) > MAX_FAULTS:
+            raise ValueError(f"FDIR_ESTIMATE carries at most {MAX_FAULTS} fault channels")
+        self.config = config
+        self.faults = faults
+        self.mav = mav
+        self.adaptive = adaptive
+        self.hyst = [_Hysteresis() for _ in faults]
+        self.frame_seq = 0
+        self._last_bucket: dict[str, int] = {}
+        self.health = dialect.MAV_STATE_STANDBY
+        self.names = {f.id: (f"f_{f.id}", f"pf_{f.id}", f"pfa_{f.id}", f"pmd_{f.id}") for f in faults}
+
+    # ------------------------------------------------------------------ rates
+    def _due(self, what: str, period_s: float, time_us: int) -> bool:
+        """True on the first frame of each period_s bucket of frame time."""
+        bucket = int(math.floor(time_us / (period_s * 1e6) + 1e-9))
+        if self._last_bucket.get(what) == bucket:
+            return False
+        self._last_bucket[what] = bucket
+        return True
+
+    def _pack(self, msg) -> bytes:
+        return bytes(msg.pack(self.mav))
+
+    # ------------------------------------------------------------------ messages
+    def heartbeat(self, status: int | None = None) -> bytes:
+        st = self.health if status is None else status
+        return self._pack(dialect.MAVLink_heartbeat_message(
+            dialect.MAV_TYPE_ONBOARD_CONTROLLER, dialect.MAV_AUTOPILOT_INVALID, 0, 0, st, 3))
+
+    def statustext(self, severity: int, text: str) -> bytes:
+        return self._pack(dialect.MAVLink_statustext_message(severity, text.encode()[:50], 0, 0))
+
+    def update_declarations(self, time_us: int, out: StepOutput) -> list[tuple[int, bool, str]]:
+        """Advance the hysteresis; return (fault index, declared, text) for each change."""
+        dc = self.config.declare
+        changes = []
+        for i, (f, h) in enumerate(zip(self.faults, self.hyst, strict=True)):
+            p = float(out.fault_probability[i])
+            crossing = (p <= dc.p_clear) if h.declared else (p >= dc.p_declare)
+            if not crossing:
+                h.since_us = None
+                continue
+            if h.since_us is None:
+                h.since_us = time_us
+            hold = dc.clear_hold_s if h.declared else dc.declare_hold_s
+            if time_us - h.since_us + _EPS_US >= hold * 1e6:
+                h.declared = not h.declared
+                h.since_us = None
+                changes.append((i, h.declared, statustext_for(f, float(out.fault_estimate[i]), p,
+                                                              h.declared)))
+        return changes
+
+    @property
+    def declared_mask(self) -> int:
+        return sum(1 << i for i, h in enumerate(self.hyst) if h.declared)
+
+    def publish(self, frame: AssembledFrame, out: StepOutput, gap: bool = False
+                ) -> tuple[list[bytes], list[tuple[str, str]]]:
+        """Messages for one stepped frame, and (level, text) events for declarations."""
+        t_ms = frame.time_boot_ms
+        msgs: list[bytes] = []
+        events: list[tuple[str, str]] = []
+        self.frame_seq += 1
+        changes = self.update_declarations(frame.time_us, out)
+        if self._due("hb", self.config.heartbeat_period_s, frame.time_us):
+            msgs.append(self.heartbeat())
+        if self._due("est", 1.0 / self.config.estimate_rate_hz, frame.time_us):
+            msgs.append(self._pack(self._estimate_message(frame, out, gap)))
+        if self._due("nvf", 1.0 / self.config.named_value_rate_hz, frame.time_us):
+            for i, f in enumerate(self.faults):
+                nf_, npf, npfa, npmd = self.names[f.id]
+                vals = [(nf_, out.fault_estimate[i]), (npf, out.fault_probability[i])]
+                if self.adaptive and out.pfa is not None and out.pmd is not None:
+                    vals += [(npfa, out.pfa[i]), (npmd, out.pmd[i])]
+                for name, v in vals:
+                    msgs.append(self._pack(dialect.MAVLink_named_value_float_message(
+                        t_ms, name.encode(), float(v))))
+        for _i, declared, text in changes:
+            sev = dialect.MAV_SEVERITY_WARNING if declared else dialect.MAV_SEVERITY_NOTICE
+            msgs.append(self.statustext(sev, text))
+            events.append(("warning" if declared else "info", text))
+        return msgs, events
+
+    def _estimate_message(self, frame: AssembledFrame, out: StepOutput, gap: bool):
+        nf = len(self.faults)
+        n = out.x_mean.size
+
+        def pad(v, fill=math.nan) -> list[float]:
+            a = [fill] * MAX_FAULTS
+            if v is not None:
+                a[:nf] = [float(x) for x in np.asarray(v)[:nf]]
+            return a
+
+        std = np.sqrt(np.clip(np.diag(out.x_cov), 0.0, None)) if out.x_cov is not None else np.full(n, np.nan)
+        flags = 0
+        if out.resampled:
+            flags |= dialect.FDIR_ESTIMATE_FLAGS_RESAMPLED
+        if self.adaptive:
+            flags |= dialect.FDIR_ESTIMATE_FLAGS_ADAPTIVE
+        if frame.stale:
+            flags |= dialect.FDIR_ESTIMATE_FLAGS_SENSOR_STALE
+        if gap or frame.synthetic:
+            flags |= dialect.FDIR_ESTIMATE_FLAGS_GAP
+        mask_bits = sum(1 << j for j, ok in enumerate(frame.mask[:8]) if ok)
+        fault_std = pad(std[5:5 + nf]) if std.size >= 5 + nf else pad(None)
+        return dialect.MAVLink_fdir_estimate_message(
+            frame.time_boot_ms, self.frame_seq & 0xFFFFFFFF, nf, self.declared_mask, flags, mask_bits,
+            [float(v) for v in out.x_mean[:5]], [float(v) for v in std[:5]],
+            pad(out.fault_estimate), fault_std, pad(out.fault_probability),
+            pad(out.pfa), pad(out.pmd), float(out.n_eff))

@@ -1,0 +1,332 @@
+"""JSON schemas of every recorded topic (MCAP `jsonschema` encoding, `json` messages).
+
+One named schema per MAVLink message type (`mavlink.<MSG>`, built from pymavlink's field tables),
+the flat `/fdir/estimate` record (`fdir.Estimate`, one numeric field per quantity so Foxglove's
+plot panel addresses `/fdir/estimate.f_gnss`), the top-particle snapshot (`fdir.Particles`), the
+raw MAVLink byte stream (`fdir.RawMavlink`, base64 bytes), the simulator truth (`fdir.SimTruth`)
+and Foxglove's own `foxglove.Log` (the name Foxglove's Log panel recognises).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from fdir_service.estimation.base import StepOutput
+
+SCHEMA_ENCODING = "jsonschema"
+MESSAGE_ENCODING = "json"
+
+STATE_NAMES: tuple[str, ...] = ("p_d", "u", "w", "theta", "q")
+"""Airframe state order z = [p_d, u, w, theta, q] (SI: m, m/s, m/s, rad, rad/s)."""
+
+_INTEGER_TYPES = {"int8_t", "uint8_t", "int16_t", "uint16_t", "int32_t", "uint32_t", "int64_t", "uint64_t",
+                  "uint8_t_mavlink_version"}
+_NUMBER = {"type": ["number", "null"]}  # null carries a NaN / inf (JSON has no NaN)
+_INTEGER = {"type": "integer"}
+
+
+def schema_bytes(schema: dict[str, Any]) -> bytes:
+    """The schema as the UTF-8 JSON text stored in the MCAP Schema record."""
+    return json.dumps(schema, sort_keys=True).encode()
+
+
+# ----------------------------------------------------------------------------- MAVLink messages
+
+def _field_schema(mav_type: str, array_length: int, unit: str | None) -> dict[str, Any]:
+    base = mav_type.split("[")[0]
+    if base == "char":
+        item: dict[str, Any] = {"type": "string"}
+    elif base in _INTEGER_TYPES:
+        item = dict(_INTEGER)
+    else:
+        item = dict(_NUMBER)
+    if base != "char" and array_length:
+        item = {"type": "array", "items": item, "minItems": array_length, "maxItems": array_length}
+    if unit:
+        item["description"] = f"unit: {unit}"
+    return item
+
+
+def mavlink_schema_name(msg_name: str) -> str:
+    """`mavlink.GPS_RAW_INT`: the schema name of one MAVLink message type."""
+    return f"mavlink.{msg_name}"
+
+
+def mavlink_schema(msg_class: type) -> dict[str, Any]:
+    """JSON schema of a pymavlink message class (any dialect): its fields with their MAVLink units,
+    plus `mavpackettype` and the sender's `_sys` / `_comp` ids."""
+    names = list(msg_class.fieldnames)
+    types = list(msg_class.fieldtypes)
+    # pymavlink lists array_lengths in wire order (ordered_fieldnames), fieldtypes in declaration order
+    wire_order = list(getattr(msg_class, "ordered_fieldnames", names))
+    length_by_name = dict(zip(wire_order, msg_class.array_lengths, strict=True))
+    lengths = [length_by_name.get(n, 0) for n in names]
+    units = getattr(msg_class, "fieldunits_by_name", {}) or {}
+    props: dict[str, Any] = {
+        "mavpackettype": {"type": "string"},
+        "_sys": {"type": "integer", "description": "MAVLink source system id"},
+        "_comp": {"type": "integer", "description": "MAVLink source component id"},
+    }
+    for name, mav_type, length in zip(names, types, lengths, strict=True):
+        props[name] = _field_schema(mav_type, length, units.get(name))
+    msg_name = getattr(msg_class, "msgname", None) or (
+        msg_class.__name__.removeprefix("MAVLink_").removesuffix("_message").upper())
+    return {
+        "title": mavlink_schema_name(msg_name),
+        "description": f"MAVLink message {msg_name} (id {getattr(msg_class, 'id', '?')}) via pymavlink",
+        "type": "object",
+        "properties": props,
+        "required": ["mavpackettype", *names],
+    }
+
+
+def _json_safe(value: Any) -> Any:
+    t = type(value)
+    if t is int or t is str:
+        return value
+    if t is float:
+        return value if math.isfinite(value) else None
+    if t is list and all(type(v) is float for v in value):
+        return [v if math.isfinite(v) else None for v in value]
+    if isinstance(value, (bytes, bytearray)):
+        return bytes(value).decode("utf-8", errors="replace")
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        return _json_safe(value.item())
+    return value
+
+
+def mavlink_message_json(msg: Any) -> dict[str, Any]:
+    """A decoded pymavlink message as the JSON object of its `mavlink.<MSG>` schema."""
+    d = {k: _json_safe(v) for k, v in msg.to_dict().items()}
+    d["_sys"] = int(msg.get_srcSystem())
+    d["_comp"] = int(msg.get_srcComponent())
+    return d
+
+
+def mavlink_topic(msg: Any) -> str:
+    """`/mavlink/<sys>/<comp>/<MSG>` for a decoded message."""
+    return f"/mavlink/{msg.get_srcSystem()}/{msg.get_srcComponent()}/{msg.get_type()}"
+
+
+# ----------------------------------------------------------------------------- raw bytes
+
+RAW_SCHEMA: dict[str, Any] = {
+    "title": "fdir.RawMavlink",
+    "description": "Bytes exactly as read from (direction 'in') or written to ('out') the autopilot link; "
+    "replaying the 'in' bytes through a fresh pipeline reproduces every estimate.",
+    "type": "object",
+    "properties": {
+        "direction": {"type": "string", "enum": ["in", "out"]},
+        "data": {"type": "string", "contentEncoding": "base64"},
+        "length": {"type": "integer"},
+    },
+    "required": ["direction", "data", "length"],
+}
+
+
+def raw_json(direction: str, data: bytes) -> dict[str, Any]:
+    return {"direction": direction, "data": base64.b64encode(data).decode("ascii"), "length": len(data)}
+
+
+def raw_bytes(record: dict[str, Any]) -> bytes:
+    """Inverse of `raw_json`: the exact bytes of one raw record."""
+    return base64.b64decode(record["data"])
+
+
+# ----------------------------------------------------------------------------- estimate
+
+def estimate_field_names(fault_ids: Sequence[str], n_state: int, *, adaptive: bool) -> list[str]:
+    """Flat field names of `/fdir/estimate`, in record order.
+
+    `x_<s>` / `var_<s>`: extended-state mean and covariance diagonal (airframe states by name, then
+    one `x_f_<id>` per fault); `f_<id>` fault estimate (SI), `pf_<id>` P(fault); adaptive filters add
+    `pfa_<id>`, `pmd_<id>` and the transition matrix `pi00_<id>` .. `pi11_<id>`.
+    """
+    states = state_names(fault_ids, n_state)
+    names = ["frame_time_s"]
+    names += [f"x_{s}" for s in states]
+    names += [f"var_{s}" for s in states]
+    names += [f"f_{f}" for f in fault_ids]
+    names += [f"pf_{f}" for f in fault_ids]
+    if adaptive:
+        names += [f"pfa_{f}" for f in fault_ids]
+        names += [f"pmd_{f}" for f in fault_ids]
+        for ij in ("00", "01", "10", "11"):
+            names += [f"pi{ij}_{f}" for f in fault_ids]
+    names += ["n_eff", "resampled", "latency_s"]
+    return names
+
+
+def state_names(fault_ids: Sequence[str], n_state: int) -> list[str]:
+    """Names of the extended-state entries: the 5 airframe states, then `f_<id>` per fault channel
+    (a filter whose state is longer than 5 + nf gets `s<i>` names for the extras)."""
+    names = list(STATE_NAMES[: min(n_state, 5)]) + [f"f_{f}" for f in fault_ids]
+    names += [f"s{i}" for i in range(len(names), n_state)]
+    return names[:n_state]
+
+
+def estimate_schema(fault_ids: Sequence[str], n_state: int, *, adaptive: bool) -> dict[str, Any]:
+    """The `fdir.Estimate` schema for one filter layout (flat numbers: Foxglove plot-panel paths)."""
+    props: dict[str, Any] = {}
+    for name in estimate_field_names(fault_ids, n_state, adaptive=adaptive):
+        props[name] = {"type": "boolean"} if name == "resampled" else dict(_NUMBER)
+    props["frame_time_s"]["description"] = "frame time, s (the autopilot's timestamp of the frame)"
+    props["latency_s"]["description"] = "wall-clock processing time of the step, s (not reproducible)"
+    props["n_eff"]["description"] = "effective sample size 1 / sum w^2"
+    return {
+        "title": "fdir.Estimate",
+        "description": "One filter step: extended-state mean and covariance diagonal (SI), per-fault "
+        "estimate and P(fault), Pfa/Pmd and transition probabilities (adaptive filters), N_eff, latency.",
+        "type": "object",
+        "properties": props,
+        "required": list(props),
+    }
+
+
+def _num(v: Any) -> float | None:
+    f = float(v)
+    return f if math.isfinite(f) else None
+
+
+def estimate_json(frame_time_s: float, out: StepOutput, latency_s: float) -> dict[str, Any]:
+    """A StepOutput as the flat `fdir.Estimate` object (floats round-trip exactly through JSON)."""
+    fault_ids = tuple(out.fault_ids)
+    x = np.asarray(out.x_mean, dtype=float)
+    var = np.diag(np.asarray(out.x_cov, dtype=float))
+    states = state_names(fault_ids, x.size)
+    d: dict[str, Any] = {"frame_time_s": float(frame_time_s)}
+    for s, v in zip(states, x, strict=True):
+        d[f"x_{s}"] = _num(v)
+    for s, v in zip(states, var, strict=True):
+        d[f"var_{s}"] = _num(v)
+    for f, v in zip(fault_ids, np.asarray(out.fault_estimate, dtype=float), strict=True):
+        d[f"f_{f}"] = _num(v)
+    for f, v in zip(fault_ids, np.asarray(out.fault_probability, dtype=float), strict=True):
+        d[f"pf_{f}"] = _num(v)
+    if is_adaptive(out):
+        pfa = np.asarray(out.pfa, dtype=float)
+        pmd = np.asarray(out.pmd, dtype=float)
+        pi = np.asarray(out.transition, dtype=float).reshape(len(fault_ids), 2, 2)
+        for k, f in enumerate(fault_ids):
+            d[f"pfa_{f}"] = _num(pfa[k])
+        for k, f in enumerate(fault_ids):
+            d[f"pmd_{f}"] = _num(pmd[k])
+        for i, j in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            for k, f in enumerate(fault_ids):
+                d[f"pi{i}{j}_{f}"] = _num(pi[k, i, j])
+    d["n_eff"] = _num(out.n_eff)
+    d["resampled"] = bool(out.resampled)
+    d["latency_s"] = float(latency_s)
+    return d
+
+
+def is_adaptive(out: StepOutput) -> bool:
+    """Whether a step carries Pfa/Pmd and a transition matrix (AJMRPF / ARJMRPF)."""
+    return out.pfa is not None and out.pmd is not None and out.transition is not None
+
+
+# ----------------------------------------------------------------------------- particles
+
+PARTICLES_SCHEMA: dict[str, Any] = {
+    "title": "fdir.Particles",
+    "description": "The most weighted particles of one frame (once per second of frame time): "
+    "states[i] is particle i's extended state in the order of `names` (SI), weights[i] its weight.",
+    "type": "object",
+    "properties": {
+        "frame_time_s": {"type": "number"},
+        "names": {"type": "array", "items": {"type": "string"}},
+        "weights": {"type": "array", "items": _NUMBER},
+        "states": {"type": "array", "items": {"type": "array", "items": _NUMBER}},
+    },
+    "required": ["frame_time_s", "names", "weights", "states"],
+}
+
+
+def particles_json(frame_time_s: float, states: np.ndarray, weights: np.ndarray,
+                   names: Sequence[str]) -> dict[str, Any]:
+    s = np.atleast_2d(np.asarray(states, dtype=float))
+    return {
+        "frame_time_s": float(frame_time_s),
+        "names": list(names),
+        "weights": [_num(w) for w in np.asarray(weights, dtype=float).ravel()],
+        "states": [[_num(v) for v in row] for row in s],
+    }
+
+
+# ----------------------------------------------------------------------------- foxglove.Log
+
+LOG_LEVELS = {"unknown": 0, "debug": 1, "info": 2, "warning": 3, "error": 4, "fatal": 5}
+
+FOXGLOVE_LOG_SCHEMA: dict[str, Any] = {
+    "title": "foxglove.Log",
+    "description": "A log message",
+    "type": "object",
+    "properties": {
+        "timestamp": {
+            "type": "object",
+            "title": "time",
+            "properties": {
+                "sec": {"type": "integer", "minimum": 0},
+                "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999},
+            },
+            "description": "Timestamp of log message",
+        },
+        "level": {
+            "title": "foxglove.LogLevel",
+            "description": "Log level",
+            "oneOf": [{"title": k.upper(), "const": v} for k, v in LOG_LEVELS.items()],
+        },
+        "message": {"type": "string", "description": "Log message"},
+        "name": {"type": "string", "description": "Process or node name"},
+        "file": {"type": "string", "description": "Filename"},
+        "line": {"type": "integer", "minimum": 0, "description": "Line number in the file"},
+    },
+    "required": ["timestamp", "level", "message", "name", "file", "line"],
+}
+
+
+def log_json(level: str, text: str, t_ns: int, name: str = "fdir") -> dict[str, Any]:
+    """A `foxglove.Log` object; level is "debug" | "info" | "warning" | "error" | "fatal"."""
+    t_ns = max(int(t_ns), 0)
+    return {
+        "timestamp": {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000},
+        "level": LOG_LEVELS.get(level.lower(), 0),
+        "message": text,
+        "name": name,
+        "file": "",
+        "line": 0,
+    }
+
+
+# ----------------------------------------------------------------------------- simulator truth
+
+def truth_field_names(fault_ids: Sequence[str]) -> list[str]:
+    """Flat fields of `/sim/truth`: time, airframe state, altitude, fault values and mode flags, inputs."""
+    names = ["t", *STATE_NAMES, "h"]
+    names += [f"f_{f}" for f in fault_ids]
+    names += [f"active_{f}" for f in fault_ids]
+    names += ["delta_e", "delta_t"]
+    return names
+
+
+def truth_schema(fault_ids: Sequence[str]) -> dict[str, Any]:
+    props: dict[str, Any] = {}
+    for name in truth_field_names(fault_ids):
+        props[name] = {"type": "boolean"} if name.startswith("active_") else dict(_NUMBER)
+    props["t"]["description"] = "simulation time, s (the clock of time_boot_ms on the wire)"
+    return {
+        "title": "fdir.SimTruth",
+        "description": "Simulator truth at one frame: state z = [p_d, u, w, theta, q] (SI), altitude h, "
+        "each fault's true value (SI) and whether it is active, inputs [delta_e rad, delta_t 0..1].",
+        "type": "object",
+        "properties": props,
+        "required": list(props),
+    }

@@ -1,0 +1,434 @@
+"""The service configuration (`config/service.toml`): links, signing, frames, publishing, and the
+mapping from MAVLink message fields to the filter's measurement vector y (m,) and input u (2,).
+
+A mapped value is `raw * scale + offset`, then a transform: `none`, `pressure_to_altitude`
+(Pa -> m above MSL, the barometric formula of `fdir_service.atmosphere`), `negate`, or `pwm`
+(linear from [pwm_min, pwm_max] us to [min, max] in SI; clipped to that range). The scenario
+file named in `[service] scenario` supplies the filter settings, the measurement set (its rows,
+in order) and the fault layout. Every key is validated on load: an unknown key, a wrong type or
+an impossible value raises `ConfigError` naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fdir_service.errors import ConfigError
+from fdir_service.paths import config_dir, scenario_path
+from fdir_service.scenario import ACTUATORS, FILTER_NAMES, Scenario, load_scenario, parse_scenario
+
+TRANSFORMS = ("none", "negate", "pressure_to_altitude", "pwm")
+_FIELD_RE = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
+
+
+def default_config_path() -> Path:
+    """`config/service.toml` (beside the package, or under $FDIR_CONFIG_DIR)."""
+    return config_dir() / "service.toml"
+
+
+@dataclass(frozen=True)
+class FieldMap:
+    """One vector entry read from one message field.
+
+    name: the measurement (scenario name) or input (delta_e, delta_t); message: MAVLink message
+    name (e.g. "GPS_RAW_INT"); field: field name, `name[i]` for an array element; value in SI =
+    transform(raw * scale + offset); `where`: field -> required value (other messages of that
+    type are ignored for this entry); valid range checked on the SI value; stale_s: a measurement
+    silent this long (message time) is reported stale.
+    """
+
+    name: str
+    message: str
+    field: str
+    index: int | None = None
+    scale: float = 1.0
+    offset: float = 0.0
+    transform: str = "none"
+    pwm_min: float = 1000.0
+    pwm_max: float = 2000.0
+    min: float = -math.inf
+    max: float = math.inf
+    where: tuple[tuple[str, float], ...] = ()
+    stale_s: float = 1.0
+    frozen_s: float = 0.0
+    """A measurement whose value stays bit-identical this long (message time) is frozen: masked and
+    reported (0 = never; inputs are never checked, a constant throttle is normal)."""
+
+    def convert(self, raw: float) -> float:
+        """Raw field value -> SI value (NaN for a non-numeric or impossible raw value)."""
+        v = float(raw) * self.scale + self.offset
+        if self.transform == "negate":
+            return -v
+        if self.transform == "pressure_to_altitude":
+            from fdir_service.atmosphere import altitude_from_pressure
+
+            return float(altitude_from_pressure(v)) if v > 0.0 else math.nan
+        if self.transform == "pwm":
+            frac = (v - self.pwm_min) / (self.pwm_max - self.pwm_min)
+            frac = min(max(frac, 0.0), 1.0)
+            return self.min + frac * (self.max - self.min)
+        return v
+
+
+@dataclass(frozen=True)
+class DeclareConfig:
+    """STATUSTEXT hysteresis: declare when P(fault) >= p_declare for declare_hold_s of frame
+    time; clear when P(fault) <= p_clear for clear_hold_s."""
+
+    p_declare: float = 0.9
+    declare_hold_s: float = 0.2
+    p_clear: float = 0.5
+    clear_hold_s: float = 1.0
+
+
+@dataclass(frozen=True)
+class PublishConfig:
+    named_value_rate_hz: float = 10.0   # f_/pf_/pfa_/pmd_ NAMED_VALUE_FLOAT rate (frame time)
+    estimate_rate_hz: float = 20.0      # FDIR_ESTIMATE rate (frame time); >= frame rate: every frame
+    heartbeat_period_s: float = 1.0
+    stale_statustext: bool = True       # also announce stale / recovered sensors by STATUSTEXT
+    declare: DeclareConfig = field(default_factory=DeclareConfig)
+
+
+@dataclass(frozen=True)
+class HealthConfig:
+    """Link and estimator supervision (`[health]`).
+
+    link_timeout_s: no input bytes for this long (wall clock) = link lost (HEARTBEAT CRITICAL,
+    STATUSTEXT); min_n_eff / degenerate_frames: a particle filter whose N_eff stays below min_n_eff
+    for that many consecutive frames is degenerate and is re-initialised from the current
+    measurements (also on a non-finite estimate or the filter's own re-initialisation);
+    reinit_gate_sigmas: on re-initialisation, rows further than this many sigma from the state made
+    from the measurements are masked for that frame; reinit_holdoff_s: frame time between two
+    re-initialisations; statustext_interval_s: minimum frame time between two STATUSTEXTs about the
+    same kind of bad input.
+    """
+
+    link_timeout_s: float = 2.0
+    min_n_eff: float = 1.5
+    degenerate_frames: int = 10
+    reinit_gate_sigmas: float = 20.0
+    reinit_holdoff_s: float = 1.0
+    statustext_interval_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class RecordConfig:
+    """`fdir run`'s flight recorder (`[record]`): on by default, a new file per start in `directory`
+    (relative paths: from the working directory), rotated past rotate_mb MB or rotate_s seconds
+    (0 = never)."""
+
+    enabled: bool = True
+    directory: str = "recordings"
+    rotate_mb: float = 100.0
+    rotate_s: float = 3600.0
+
+
+@dataclass(frozen=True)
+class ServiceConfig:
+    """A validated service configuration. `text` and `scenario_text` are the TOML sources (recorded
+    in logs so that `fdir replay` rebuilds the identical pipeline)."""
+
+    scenario: Scenario
+    filter: str
+    particles: int
+    seed: int
+    master: str
+    gcs: tuple[str, ...]
+    autopilot_system: int
+    component: int
+    signing_key_file: str
+    signing_link_id: int
+    frame_rate_hz: float
+    max_gap_s: float
+    measurements: tuple[FieldMap, ...]
+    inputs: tuple[FieldMap, ...]
+    publish: PublishConfig
+    health: HealthConfig = field(default_factory=HealthConfig)
+    record: RecordConfig = field(default_factory=RecordConfig)
+    text: str = ""
+    scenario_text: str = ""
+    source: str = "<text>"
+
+    @property
+    def frame_period_us(self) -> int:
+        return int(round(1e6 / self.frame_rate_hz))
+
+    def signing_key(self) -> bytes | None:
+        """The 32-byte signing key read from `signing.key_file` (64 hex characters), or None."""
+        if not self.signing_key_file:
+            return None
+        path = Path(self.signing_key_file)
+        try:
+            txt = path.read_text().strip()
+        except OSError as exc:
+            raise ConfigError(f"signing.key_file: cannot read {path}: {exc.strerror}") from None
+        try:
+            key = bytes.fromhex(txt)
+        except ValueError:
+            key = b""
+        if len(key) != 32:
+            raise ConfigError(f"signing.key_file: {path} must hold 64 hex characters (a 32-byte key)")
+        return key
+
+    @classmethod
+    def from_toml_text(cls, text: str, *, scenario_text: str | None = None,
+                       source: str = "<text>") -> ServiceConfig:
+        """Parse and validate. With `scenario_text` (as recorded in a log) that scenario TOML is
+        used instead of the file named in `[service] scenario`."""
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+        try:
+            return _parse(doc, text, scenario_text, source)
+        except ConfigError as exc:
+            raise ConfigError(f"{source}: {exc}") from None
+
+
+def load_service_config(path: str | Path | None = None) -> ServiceConfig:
+    """Load and validate a service config file (default `config/service.toml`)."""
+    p = Path(path) if path is not None else default_config_path()
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: no such service config file") from None
+    return ServiceConfig.from_toml_text(text, source=str(p))
+
+
+# ----------------------------------------------------------------------------- validation
+
+class _T:
+    """A TOML table being consumed: leftover keys are reported as unknown."""
+
+    def __init__(self, data: Any, where: str) -> None:
+        if not isinstance(data, dict):
+            raise ConfigError(f"{where}: expected a table, got {type(data).__name__}")
+        self.d = dict(data)
+        self.where = where
+
+    def key(self, k: str) -> str:
+        return f"{self.where}.{k}" if self.where else k
+
+    def get(self, k: str, kind: type | tuple[type, ...], default: Any = ..., *,
+            check: Any = None, expect: str = "") -> Any:
+        if k not in self.d:
+            if default is ...:
+                raise ConfigError(f"{self.key(k)}: missing")
+            return default
+        v = self.d.pop(k)
+        kinds = kind if isinstance(kind, tuple) else (kind,)
+        ok = isinstance(v, kinds) and not (isinstance(v, bool) and bool not in kinds)
+        if float in kinds and isinstance(v, int) and not isinstance(v, bool):
+            v, ok = float(v), True
+        if ok and isinstance(v, float) and not math.isfinite(v):
+            ok = False
+        names = {str: "a string", int: "an integer", float: "a number", bool: "true or false",
+                 list: "an array"}
+        if not ok:
+            raise ConfigError(f"{self.key(k)}: expected {names.get(kinds[0], kinds[0].__name__)}, "
+                              f"got {v!r}")
+        if check is not None and not check(v):
+            raise ConfigError(f"{self.key(k)}: expected {expect}, got {v!r}")
+        return v
+
+    def sub(self, k: str) -> _T:
+        return _T(self.d.pop(k, {}), self.key(k))
+
+    def finish(self) -> None:
+        if self.d:
+            raise ConfigError("unknown key(s): " + ", ".join(self.key(k) for k in sorted(self.d)))
+
+
+def _positive(v: float) -> bool:
+    return v > 0
+
+
+def _field_map(t: _T, name: str, is_input: bool) -> FieldMap:
+    from fdir_service.mavlink import dialect
+
+    msg_name = t.get("message", str)
+    cls = getattr(dialect, f"MAVLink_{msg_name.lower()}_message", None)
+    if cls is None or msg_name != msg_name.upper():
+        raise ConfigError(f"{t.key('message')}: {msg_name!r} is not a MAVLink message of the "
+                          "fdir dialect (use the upper-case name, e.g. GPS_RAW_INT)")
+    spec = t.get("field", str)
+    m = _FIELD_RE.match(spec)
+    if not m or m.group(1) not in cls.fieldnames:
+        raise ConfigError(f"{t.key('field')}: {spec!r} is not a field of {msg_name} "
+                          f"(fields: {', '.join(cls.fieldnames)})")
+    fname, idx = m.group(1), (int(m.group(2)) if m.group(2) is not None else None)
+    alen = cls.array_lengths[cls.fieldnames.index(fname)]
+    if (alen > 0) != (idx is not None) or (idx is not None and idx >= alen):
+        raise ConfigError(f"{t.key('field')}: {fname} "
+                          + (f"is an array of {alen}: write {fname}[i], 0 <= i < {alen}" if alen
+                             else "is not an array"))
+    if not {"time_boot_ms", "time_usec"} & set(cls.fieldnames):
+        raise ConfigError(f"{t.key('message')}: {msg_name} carries no time_boot_ms/time_usec "
+                          "timestamp, so it cannot be placed in a frame")
+    transform = t.get("transform", str, "none", check=lambda v: v in TRANSFORMS,
+                      expect="one of " + ", ".join(TRANSFORMS))
+    kw: dict[str, Any] = {}
+    if transform == "pwm":
+        kw["pwm_min"] = t.get("pwm_min", float, 1000.0)
+        kw["pwm_max"] = t.get("pwm_max", float, 2000.0,
+                              check=lambda v: v > kw["pwm_min"], expect="a value above pwm_min")
+        kw["min"] = t.get("min", float)
+        kw["max"] = t.get("max", float, check=lambda v: v > kw["min"], expect="a value above min")
+    else:
+        kw["min"] = t.get("valid_min", float, -math.inf)
+        kw["max"] = t.get("valid_max", float, math.inf,
+                          check=lambda v: v > kw["min"], expect="a value above valid_min")
+    wt = t.sub("where")
+    where = []
+    for wk in list(wt.d):
+        if wk not in cls.fieldnames:
+            raise ConfigError(f"{wt.key(wk)}: {wk!r} is not a field of {msg_name}")
+        where.append((wk, wt.get(wk, float)))
+    wt.finish()
+    fm = FieldMap(
+        name=name, message=msg_name, field=fname, index=idx,
+        scale=t.get("scale", float, 1.0, check=lambda v: v != 0, expect="a non-zero number"),
+        offset=t.get("offset", float, 0.0), transform=transform,
+        where=tuple(where),
+        stale_s=t.get("stale_s", float, 1.0, check=_positive, expect="a positive time (s)"),
+        frozen_s=(0.0 if is_input else t.get("frozen_s", float, 0.0, check=lambda v: v >= 0,
+                                               expect="a time >= 0 (s; 0 = off)")),
+        **kw,
+    )
+    t.finish()
+    return fm
+
+
+def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: str) -> ServiceConfig:
+    root = _T(doc, "")
+    s = root.sub("service")
+    scen_ref = s.get("scenario", str, "ch4")
+    if scenario_text is None:
+        try:
+            scenario_text = scenario_path(scen_ref).read_text()
+        except OSError:
+            raise ConfigError(f"service.scenario: no scenario {scen_ref!r} "
+                              f"(looked for {scenario_path(scen_ref)})") from None
+        scenario = load_scenario(scen_ref)
+    else:
+        try:
+            scenario = parse_scenario(tomllib.loads(scenario_text), f"<recorded {scen_ref}>")
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"service.scenario: recorded scenario text is not TOML: {exc}") from None
+    filt = s.get("filter", str, scenario.estimator.proposed, check=lambda v: v in FILTER_NAMES,
+                 expect="one of " + ", ".join(FILTER_NAMES))
+    particles = s.get("particles", int, scenario.estimator.particles, check=_positive,
+                      expect="a positive number of particles")
+    seed = s.get("seed", int, 0, check=lambda v: v >= 0, expect="a non-negative integer")
+    s.finish()
+
+    link = root.sub("link")
+    master = link.get("master", str, "udpin:127.0.0.1:14550",
+                      check=lambda v: ":" in v, expect="a mavutil URL such as udpin:127.0.0.1:14550")
+    gcs = link.get("gcs", list, [])
+    if not all(isinstance(g, str) and ":" in g for g in gcs):
+        raise ConfigError(f"link.gcs: expected a list of mavutil URLs, got {gcs!r}")
+    ap_sys = link.get("autopilot_system", int, 0, check=lambda v: 0 <= v <= 255,
+                      expect="0 (learn from the first HEARTBEAT) or a system id 1..255")
+    comp = link.get("component", int, 191, check=lambda v: 1 <= v <= 255, expect="a component id 1..255")
+    link.finish()
+
+    sg = root.sub("signing")
+    key_file = sg.get("key_file", str, "")
+    link_id = sg.get("link_id", int, 0, check=lambda v: 0 <= v <= 255, expect="0..255")
+    sg.finish()
+
+    fr = root.sub("frames")
+    rate = fr.get("rate_hz", float, 1.0 / scenario.dt_s, check=_positive, expect="a positive rate")
+    if abs(rate * scenario.dt_s - 1.0) > 1e-6:
+        raise ConfigError(f"frames.rate_hz: the scenario's filter models are discretised at "
+                          f"dt = {scenario.dt_s} s, so the rate must be {1.0 / scenario.dt_s:g} Hz, "
+                          f"got {rate!r}")
+    max_gap = fr.get("max_gap_s", float, 2.0, check=lambda v: v >= 0, expect="a non-negative time (s)")
+    fr.finish()
+
+    pb = root.sub("publish")
+    dc = pb.sub("declare")
+    p_decl = dc.get("p_declare", float, 0.9, check=lambda v: 0 < v <= 1, expect="a probability in (0, 1]")
+    declare = DeclareConfig(
+        p_declare=p_decl,
+        declare_hold_s=dc.get("declare_hold_s", float, 0.2, check=lambda v: v >= 0, expect="a time >= 0"),
+        p_clear=dc.get("p_clear", float, 0.5, check=lambda v: 0 <= v < p_decl,
+                       expect=f"a probability below p_declare ({p_decl})"),
+        clear_hold_s=dc.get("clear_hold_s", float, 1.0, check=lambda v: v >= 0, expect="a time >= 0"),
+    )
+    dc.finish()
+    publish = PublishConfig(
+        named_value_rate_hz=pb.get("named_value_rate_hz", float, 10.0, check=_positive,
+                                   expect="a positive rate"),
+        estimate_rate_hz=pb.get("estimate_rate_hz", float, 1.0 / scenario.dt_s, check=_positive,
+                                expect="a positive rate"),
+        heartbeat_period_s=pb.get("heartbeat_period_s", float, 1.0, check=_positive,
+                                  expect="a positive period"),
+        stale_statustext=pb.get("stale_statustext", bool, True),
+        declare=declare,
+    )
+    pb.finish()
+
+    mt = root.sub("measurements")
+    maps = {k: _field_map(mt.sub(k), k, False) for k in list(mt.d)}
+    mt.finish()
+    missing = [m for m in scenario.sensors.measurements if m not in maps]
+    if missing:
+        raise ConfigError(f"measurements.{missing[0]}: missing; scenario {scenario.id!r} measures "
+                          f"{', '.join(scenario.sensors.measurements)} and each needs a mapping")
+    measurements = tuple(maps[m] for m in scenario.sensors.measurements)
+
+    it = root.sub("inputs")
+    imaps = {}
+    for k in list(it.d):
+        if k not in ACTUATORS:
+            raise ConfigError(f"inputs.{k}: unknown input; expected {', '.join(ACTUATORS)}")
+        imaps[k] = _field_map(it.sub(k), k, True)
+    it.finish()
+    for a in ACTUATORS:
+        if a not in imaps:
+            raise ConfigError(f"inputs.{a}: missing; the filter needs both {', '.join(ACTUATORS)}")
+    inputs = tuple(imaps[a] for a in ACTUATORS)
+
+    hs = root.sub("health")
+    health = HealthConfig(
+        link_timeout_s=hs.get("link_timeout_s", float, 2.0, check=_positive, expect="a positive time (s)"),
+        min_n_eff=hs.get("min_n_eff", float, 1.5, check=lambda v: v >= 0, expect="a number >= 0"),
+        degenerate_frames=hs.get("degenerate_frames", int, 10, check=_positive,
+                                 expect="a positive number of frames"),
+        reinit_gate_sigmas=hs.get("reinit_gate_sigmas", float, 20.0, check=_positive,
+                                  expect="a positive number of sigmas"),
+        reinit_holdoff_s=hs.get("reinit_holdoff_s", float, 1.0, check=lambda v: v >= 0,
+                                expect="a time >= 0 (s)"),
+        statustext_interval_s=hs.get("statustext_interval_s", float, 10.0, check=lambda v: v >= 0,
+                                     expect="a time >= 0 (s)"),
+    )
+    hs.finish()
+
+    rc = root.sub("record")
+    record = RecordConfig(
+        enabled=rc.get("enabled", bool, True),
+        directory=rc.get("directory", str, "recordings", check=lambda v: v.strip() != "",
+                         expect="a directory path"),
+        rotate_mb=rc.get("rotate_mb", float, 100.0, check=lambda v: v >= 0,
+                         expect="a size >= 0 (MB; 0 = never)"),
+        rotate_s=rc.get("rotate_s", float, 3600.0, check=lambda v: v >= 0,
+                        expect="a duration >= 0 (s; 0 = never)"),
+    )
+    rc.finish()
+    root.finish()
+
+    return ServiceConfig(
+        scenario=scenario, filter=filt, particles=particles, seed=seed, master=master,
+        gcs=tuple(gcs), autopilot_system=ap_sys, component=comp, signing_key_file=key_file,
+        signing_link_id=link_id, frame_rate_hz=rate, max_gap_s=max_gap,
+        measurements=measurements, inputs=inputs, publish=publish, health=health, record=record, text=text,
+        scenario_text=scenario_text, source=source,
+    )

@@ -1,0 +1,162 @@
+"""The simulated Aerosonde on the wire: what an autopilot would send, and the estimates coming back.
+
+Sent per frame k (all stamped with the simulation time t_k; `time_boot_ms` = round(t_k * 1000),
+`time_usec` = round(t_k * 1e6)), only for the measurements the scenario has:
+  GPS_RAW_INT      alt (mm above MSL) = GNSS altitude measurement
+  SCALED_PRESSURE  press_abs (hPa) = the barometer's static pressure (barometric formula)
+  ATTITUDE         pitch (rad), pitchspeed (rad/s) = measured pitch and pitch rate
+  ODOMETRY         child_frame_id MAV_FRAME_BODY_FRD; vx, vz (m/s) = measured body velocities u, w;
+                   pose unknown (NaN) - the truth never goes on the wire
+and, once the autopilot has computed u_k, the actuator outputs stamped t_k:
+  SERVO_OUTPUT_RAW servo2_raw = elevator: 1500 + 500 * delta_e / 30 deg us (1000..2000),
+                   servo3_raw = throttle: 1000 + 1000 * delta_t us (ArduPlane channel order)
+  ACTUATOR_OUTPUT_STATUS actuator[0] = delta_e (rad), actuator[1] = delta_t (0..1), float32:
+                   the unquantised copy (1 us of PWM is 0.06 deg of elevator).
+HEARTBEAT (MAV_TYPE_FIXED_WING, system 1, component 1) once per second of simulation time.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fdir_service.mavlink import FDIR_ESTIMATE_ID, dialect, new_mavlink
+from fdir_service.scenario import Scenario
+
+ELEVATOR_PWM_RANGE_RAD = math.radians(30.0)
+"""Elevator deflection at PWM 1000 / 2000 us (-/+), 1500 us = 0."""
+
+
+def elevator_to_pwm(delta_e: float) -> int:
+    """Elevator angle (rad) -> PWM (us), 1 us resolution, clipped to 1000..2000."""
+    return int(min(max(round(1500.0 + 500.0 * delta_e / ELEVATOR_PWM_RANGE_RAD), 1000), 2000))
+
+
+def throttle_to_pwm(delta_t: float) -> int:
+    """Throttle (0..1) -> PWM (us), clipped to 1000..2000."""
+    return int(min(max(round(1000.0 + 1000.0 * delta_t), 1000), 2000))
+
+
+def pwm_to_elevator(pwm: float) -> float:
+    return (float(pwm) - 1500.0) / 500.0 * ELEVATOR_PWM_RANGE_RAD
+
+
+def pwm_to_throttle(pwm: float) -> float:
+    return (float(pwm) - 1000.0) / 1000.0
+
+
+class AutopilotLink:
+    """Encodes the simulator's frames as an autopilot's MAVLink 2 stream and decodes replies.
+
+    system/component: the autopilot's ids; key: optional 32-byte signing key.
+    """
+
+    def __init__(self, scenario: Scenario, system: int = 1, component: int = 1,
+                 key: bytes | None = None, signing_timestamp: int = 0) -> None:
+        self.scenario = scenario
+        self.rows = {name: j for j, name in enumerate(scenario.sensors.measurements)}
+        self.tx = new_mavlink(system, component, key=key, initial_timestamp=signing_timestamp)
+        self.rx = new_mavlink(255, 0, key=key)
+        self._last_hb_s: int | None = None
+
+    def _pack(self, msg) -> bytes:
+        return bytes(msg.pack(self.tx))
+
+    def heartbeat(self) -> bytes:
+        mode = (dialect.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | dialect.MAV_MODE_FLAG_STABILIZE_ENABLED
+                | dialect.MAV_MODE_FLAG_GUIDED_ENABLED | dialect.MAV_MODE_FLAG_AUTO_ENABLED
+                | dialect.MAV_MODE_FLAG_SAFETY_ARMED)
+        return self._pack(dialect.MAVLink_heartbeat_message(
+            dialect.MAV_TYPE_FIXED_WING, dialect.MAV_AUTOPILOT_GENERIC, mode, 0,
+            dialect.MAV_STATE_ACTIVE, 3))
+
+    def sensor_messages(self, t: float, y: np.ndarray, mask: np.ndarray,
+                        static_pressure_pa: float) -> list[bytes]:
+        """The sensor messages of one frame (HEARTBEAT first on each new second), in send order."""
+        t_ms = int(round(t * 1000.0))
+        t_us = int(round(t * 1e6))
+        out: list[bytes] = []
+        sec = t_ms // 1000
+        if self._last_hb_s != sec:
+            self._last_hb_s = sec
+            out.append(self.heartbeat())
+
+        def val(name: str) -> float | None:
+            j = self.rows.get(name)
+            return None if j is None or not mask[j] else float(y[j])
+
+        nan = float("nan")
+        gnss = val("gnss_alt")
+        if gnss is not None:
+            out.append(self._pack(dialect.MAVLink_gps_raw_int_message(
+                t_us, dialect.GPS_FIX_TYPE_3D_FIX, 0, 0, int(round(gnss * 1000.0)), 100, 150,
+                65535, 65535, 12)))
+        if val("baro_alt") is not None:
+            out.append(self._pack(dialect.MAVLink_scaled_pressure_message(
+                t_ms, float(static_pressure_pa) / 100.0, 0.0, 1500)))
+        theta, q = val("theta"), val("q")
+        if theta is not None or q is not None:
+            out.append(self._pack(dialect.MAVLink_attitude_message(
+                t_ms, 0.0, nan if theta is None else theta, 0.0, 0.0, nan if q is None else q, 0.0)))
+        u, w = val("u"), val("w")
+        if u is not None or w is not None:
+            quat = [nan] * 4 if theta is None else [math.cos(theta / 2), 0.0, math.sin(theta / 2), 0.0]
+            out.append(self._pack(dialect.MAVLink_odometry_message(
+                t_us, dialect.MAV_FRAME_LOCAL_NED, dialect.MAV_FRAME_BODY_FRD, nan, nan, nan, quat,
+                nan if u is None else u, nan, nan if w is None else w, nan, nan, nan,
+                [nan] * 21, [nan] * 21, 0, dialect.MAV_ESTIMATOR_TYPE_NAIVE, 0)))
+        return out
+
+    def actuator_messages(self, t: float, u_cmd: np.ndarray) -> list[bytes]:
+        """SERVO_OUTPUT_RAW (PWM) and ACTUATOR_OUTPUT_STATUS (float SI) for the command u_cmd (2,)."""
+        t_us = int(round(t * 1e6))
+        de, dt_ = float(u_cmd[0]), float(u_cmd[1])
+        servo = [0] * 16
+        servo[0] = 1500                      # aileron (lateral not simulated)
+        servo[1] = elevator_to_pwm(de)
+        servo[2] = throttle_to_pwm(dt_)
+        servo[3] = 1500                      # rudder
+        act = [0.0] * 32
+        act[0], act[1] = de, dt_
+        return [
+            self._pack(dialect.MAVLink_servo_output_raw_message(t_us & 0xFFFFFFFF, 0, *servo)),
+            self._pack(dialect.MAVLink_actuator_output_status_message(t_us, 0b11, act)),
+        ]
+
+    def parse(self, data: bytes) -> list:
+        """Decode bytes coming back from the service (robust; signature checked when keyed)."""
+        return [m for m in (self.rx.parse_buffer(data) or []) if m.get_type() != "BAD_DATA"]
+
+
+class LossyLink:
+    """Deterministic random packet loss: each MAVLink packet (one encoded message) is dropped with
+    probability `loss`, drawn from its own seeded stream (independent of the simulation's)."""
+
+    def __init__(self, loss: float, seed: int = 0) -> None:
+        if not 0.0 <= loss < 1.0:
+            raise ValueError(f"packet loss must be in [0, 1), got {loss}")
+        self.loss = float(loss)
+        self.rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x1055]))
+        self.sent = 0
+        self.dropped = 0
+
+    def filter(self, packets: list[bytes]) -> list[bytes]:
+        """The packets that survive (order kept)."""
+        if not self.loss:
+            self.sent += len(packets)
+            return list(packets)
+        keep = self.rng.random(len(packets)) >= self.loss
+        out = [b for b, k in zip(packets, keep, strict=True) if k]
+        self.sent += len(out)
+        self.dropped += len(packets) - len(out)
+        return out
+
+
+def estimate_state(msg) -> np.ndarray:
+    """The airframe state z_hat (5,) [p_d, u, w, theta, q] of an FDIR_ESTIMATE message."""
+    return np.asarray(msg.state, dtype=float)
+
+
+def is_estimate(msg) -> bool:
+    return msg.get_msgId() == FDIR_ESTIMATE_ID
