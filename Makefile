@@ -27,6 +27,8 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/sim-bridge bench
 	$(BIN)/fdir bench
+	$(BIN)/python benchmarks/service_latency.py
+	$(BIN)/python benchmarks/replay_speed.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache
