@@ -120,9 +120,12 @@ def _view_line(gs: GroundStation, fault_ids: list[str]) -> str:
         def last(name: str) -> float:
             v = gs.values.get(name)
             return v[-1][1] if v else math.nan
+        def prob(name: str) -> str:  # Pfa/Pmd exist only for adaptive filters
+            v = last(name)
+            return f"{v:4.2f}" if math.isfinite(v) else "  - "
         decl = "DECLARED" if gs.declarations(fid) and _declared_now(gs, fid) else "ok"
         parts.append(f"{fid}: f={last('f_' + fid):+7.2f} P={last('pf_' + fid):4.2f} "
-                     f"Pfa={last('pfa_' + fid):4.2f} Pmd={last('pmd_' + fid):4.2f} {decl:8s}")
+                     f"Pfa={prob('pfa_' + fid)} Pmd={prob('pmd_' + fid)} {decl:8s}")
     return " | ".join(parts)
 
 
