@@ -52,7 +52,9 @@ class FaultChannel:
     """An additive fault on a measurement row (`kind` sensor) or an input (`kind` actuator).
 
     `profile` is the truth (summed components, SI); `sigma_f` and `x0_sigma` are the estimator's
-    fault process-noise and initial standard deviations, SI.
+    fault process-noise and initial standard deviations, SI. `amplitude_max` (SI; in the file in
+    the fault's `unit`): the half-width of the uniform amplitude prior p(f | jump) on
+    [-amplitude_max, amplitude_max] used by `estimator.sentinel_weighting = "prior"`.
     """
 
     id: str
@@ -62,6 +64,8 @@ class FaultChannel:
     profile: tuple[ProfileComponent, ...]
     sigma_f: float
     x0_sigma: float = 0.0
+    amplitude_max: float | None = None   # |f| <= this under the jump's amplitude prior (SI); see
+                                         # EstimatorConfig.sentinel_weighting
 
     @property
     def unit_scale(self) -> float:
@@ -134,6 +138,9 @@ class EstimatorConfig:
     pi01: float = 0.01
     pi10: float = 0.01
     saddlepoint_window: int = 3
+    sentinel_weighting: str = "thesis"   # "thesis" (Alg. 4.1 as written) | "prior": a sensor-fault
+                                         # sentinel's weight carries p(f | jump) / q(f), see
+                                         # docs/estimation.md; needs faults.amplitude_max
     imm: ImmConfig = field(default_factory=ImmConfig)
     gating: GatingConfig = field(default_factory=GatingConfig)
 
@@ -286,9 +293,14 @@ def _fault(t: _Table, measurements: tuple[str, ...]) -> FaultChannel:
         id=fid, target=target, kind=kind, unit=unit, profile=tuple(comps),
         sigma_f=t.pop("sigma_f", "number", nonneg=True),
         x0_sigma=t.pop("x0_sigma", "number", 0.0, nonneg=True),
+        amplitude_max=_scaled(t.pop("amplitude_max", "number", None, positive=True), scale),
     )
     t.finish()
     return ch
+
+
+def _scaled(v: float | None, scale: float) -> float | None:
+    return None if v is None else v * scale
 
 
 def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
@@ -396,9 +408,16 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
         pi01=e.pop("pi01", "number", 0.01, unit_interval=True),
         pi10=e.pop("pi10", "number", 0.01, unit_interval=True),
         saddlepoint_window=e.pop("saddlepoint_window", "integer", 3, positive=True),
+        sentinel_weighting=e.pop("sentinel_weighting", "string", "thesis",
+                                 choices=("thesis", "prior")),
         imm=imm, gating=gating,
     )
     e.finish()
+    if est.sentinel_weighting == "prior":
+        missing = [f.id for f in faults if f.kind == "sensor" and f.amplitude_max is None]
+        if missing:
+            raise ConfigError(f"estimator.sentinel_weighting = \"prior\" needs faults.amplitude_max "
+                              f"for every sensor fault; missing for {missing}")
     root.finish()
     return Scenario(sid, title, section, table, duration, dt, truth, command, sensors, faults,
                     est, source)

@@ -19,6 +19,9 @@ constant while saturated.
 
 Actuator limits: delta_e in +-30 deg, delta_t in [0, 1]. While an actuator sits on its limit the
 inner integrators are frozen (conditional integration).
+
+Speed: the gains of a design model are computed once per process (`design_gains` is cached by
+the model's F, B, trim and dt), and `update` runs on Python floats (no per-step numpy calls).
 """
 
 from __future__ import annotations
@@ -77,6 +80,22 @@ def design_gains(model: LinearModel, inner_q: np.ndarray = INNER_Q, inner_r: np.
             "inner_closed": Fa - Ba @ K, "outer_closed": Fo - Bo @ np.asarray(L)}
 
 
+_GAINS: dict[bytes, dict[str, np.ndarray]] = {}
+
+
+def _default_gains(model: LinearModel) -> dict[str, np.ndarray]:
+    """design_gains(model) with the default weights, once per (F, B, trim, dt) in this process."""
+    key = b"".join(np.ascontiguousarray(a, dtype=float).tobytes()
+                   for a in (model.F, model.B, model.trim.z, model.trim.u, np.array([model.dt])))
+    g = _GAINS.get(key)
+    if g is None:
+        g = design_gains(model)
+        if len(_GAINS) > 32:
+            _GAINS.clear()
+        _GAINS[key] = g
+    return {k: v.copy() for k, v in g.items()}
+
+
 class Autopilot:
     """Altitude and airspeed hold on a navigation estimate; `update` once per frame."""
 
@@ -86,7 +105,7 @@ class Autopilot:
         self.model = model
         self.command = command
         self.dt = dt
-        g = design_gains(model)
+        g = _default_gains(model)
         self.K, self.L = g["K"], g["L"][0]
         self.h_gamma, self.h_v = g["h_gamma"], g["h_v"]
         self.z_trim = model.trim.z.copy()
@@ -95,6 +114,14 @@ class Autopilot:
         self.gamma_trim = float(model.trim.gamma)
         self._g_h = -self.L[7]        # d gamma_raw / d x_h
         self._steps = sorted(command.altitude_steps, key=lambda s: s.t_s)
+        # Python-float copies for `update`.
+        self._k = [list(map(float, row)) for row in self.K]
+        self._l = list(map(float, self.L))
+        self._hg = list(map(float, self.h_gamma))
+        self._hv = list(map(float, self.h_v))
+        self._zt = list(map(float, self.z_trim))
+        self._ut = list(map(float, self.u_trim))
+        self._va_c = float(command.airspeed_mps)
         self.reset()
 
     def reset(self) -> None:
@@ -117,27 +144,44 @@ class Autopilot:
 
     def update(self, t: float, z_nav: np.ndarray) -> np.ndarray:
         """Input u (2,) = [delta_e rad, delta_t] for the navigation state z_nav (5,) at time t (s)."""
-        z_nav = np.asarray(z_nav, dtype=float)
-        dzr = z_nav[1:] - self.z_trim[1:]
-        e_pd = z_nav[0] + self.altitude_command(t)                 # p_d - p_d_c
-        gamma = self.gamma_trim + self.h_gamma @ dzr
-        va = self.va_trim + self.h_v @ dzr
+        pd, zu, zw, zth, zq = (z_nav.tolist() if isinstance(z_nav, np.ndarray)
+                               else [float(v) for v in z_nav])
+        zt = self._zt
+        d1, d2, d3, d4 = zu - zt[1], zw - zt[2], zth - zt[3], zq - zt[4]
+        e_pd = pd + self.altitude_command(t)                       # p_d - p_d_c
+        hg, hv = self._hg, self._hv
+        gamma = self.gamma_trim + (hg[0] * d1 + hg[1] * d2 + hg[2] * d3 + hg[3] * d4)
+        va = self.va_trim + (hv[0] * d1 + hv[1] * d2 + hv[2] * d3 + hv[3] * d4)
+        xg, xv, xh = self.x_gamma, self.x_v, self.x_h
         # Outer loop: flight-path-angle command, saturated, with back-calculation anti-windup.
-        o = np.concatenate([[e_pd], dzr, [self.x_gamma, self.x_v, self.x_h]])
-        gamma_dev = -self.L @ o
+        L = self._l
+        gamma_dev = -(L[0] * e_pd + L[1] * d1 + L[2] * d2 + L[3] * d3 + L[4] * d4
+                      + L[5] * xg + L[6] * xv + L[7] * xh)
         self.gamma_raw = self.gamma_trim + gamma_dev
-        gamma_c = float(np.clip(self.gamma_raw, -GAMMA_LIMIT_RAD, GAMMA_LIMIT_RAD))
+        gamma_c = _clip(self.gamma_raw, -GAMMA_LIMIT_RAD, GAMMA_LIMIT_RAD)
         self.gamma_command = gamma_c
         # Inner loop.
-        xi = np.concatenate([dzr, [self.x_gamma, self.x_v]])
-        u = self.u_trim - self.K @ xi
-        u_sat = np.array([np.clip(u[0], -ELEVATOR_LIMIT_RAD, ELEVATOR_LIMIT_RAD),
-                          np.clip(u[1], *THROTTLE_LIMITS)])
-        self.saturated = bool(np.any(u_sat != u))
+        k0, k1 = self._k
+        u0 = self._ut[0] - (k0[0] * d1 + k0[1] * d2 + k0[2] * d3 + k0[3] * d4 + k0[4] * xg
+                            + k0[5] * xv)
+        u1 = self._ut[1] - (k1[0] * d1 + k1[1] * d2 + k1[2] * d3 + k1[3] * d4 + k1[4] * xg
+                            + k1[5] * xv)
+        s0 = _clip(u0, -ELEVATOR_LIMIT_RAD, ELEVATOR_LIMIT_RAD)
+        s1 = _clip(u1, THROTTLE_LIMITS[0], THROTTLE_LIMITS[1])
+        self.saturated = s0 != u0 or s1 != u1          # NaN counts as saturated, as in numpy
         # Integrators (forward Euler, as in the design model).
-        self.x_h += self.dt * (e_pd + ANTI_WINDUP_GAIN * (gamma_c - self.gamma_raw) / self._g_h)
+        self.x_h = xh + self.dt * (e_pd + ANTI_WINDUP_GAIN * (gamma_c - self.gamma_raw) / self._g_h)
         if not self.saturated:
-            self.x_gamma += self.dt * (gamma_c - gamma)
-            self.x_v += self.dt * (self.command.airspeed_mps - va)
-        self.u = u_sat
-        return u_sat.copy()
+            self.x_gamma = xg + self.dt * (gamma_c - gamma)
+            self.x_v = xv + self.dt * (self._va_c - va)
+        self.u = np.array([s0, s1])
+        return np.array([s0, s1])
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    """np.clip for one float (NaN stays NaN)."""
+    if x < lo:
+        return float(lo)
+    if x > hi:
+        return float(hi)
+    return x

@@ -46,7 +46,7 @@ class ParticleFilter:
                  correction: bool = False, resampler: str = "multinomial", threshold: float = 0.5,
                  always_resample: bool = False, h: float | None = None, shrink: bool = False,
                  mode0: str = "forced_zero", fault_threshold: np.ndarray | None = None,
-                 rejump: bool = False) -> None:
+                 rejump: bool = False, sentinel_prior_width: np.ndarray | None = None) -> None:
         if mode0 not in MODE0_HANDLING:
             raise ValueError(f"mode0 must be one of {MODE0_HANDLING}, got {mode0!r}")
         if transition is not None and amplitude is None:
@@ -77,6 +77,16 @@ class ParticleFilter:
         self.fault_threshold = (np.full(self.nf, np.inf) if fault_threshold is None
                                 else np.asarray(fault_threshold, dtype=float))
         self.rejump = bool(rejump)
+        # "prior" sentinel weighting: log(sqrt(2 pi) / L_j) per sensor fault j (NaN: thesis weighting)
+        self._prior_logc = None
+        if sentinel_prior_width is not None and transition is not None:
+            L = np.asarray(sentinel_prior_width, dtype=float)
+            c = np.where(np.isfinite(L) & (L > 0), 0.5 * np.log(2.0 * np.pi) - np.log(
+                np.where(L > 0, L, 1.0)), np.nan)
+            c[layout.sensor_row < 0] = np.nan
+            if np.isfinite(c).any():
+                self._prior_logc = c
+        self._row_index: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
         self.reinitialisations = 0
         self.X = np.asarray(x0_mean, dtype=float)[:, None] + rng.standard_normal((self.n, self.N)) \
             * self.x0_std[:, None]
@@ -122,6 +132,42 @@ class ParticleFilter:
         mu10 = np.where(w0 > 1e-12, s0 / np.maximum(w0, 1e-300), A @ w)
         mu11 = np.where(w1 > 1e-12, s1 / np.maximum(w1, 1e-300), mu10)
         self.transition.update(mu10, mu11)
+
+    def _sentinel_rows(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(faults with prior weighting whose row arrived, their index in the reduced rows)."""
+        key = mask.tobytes()
+        hit = self._row_index.get(key)
+        if hit is None:
+            rows = np.flatnonzero(mask)
+            js, idx = [], []
+            for j, r in enumerate(self.layout.sensor_row):
+                if np.isfinite(self._prior_logc[j]) and r >= 0 and mask[r]:
+                    js.append(j)
+                    idx.append(int(np.searchsorted(rows, r)))
+            hit = (np.array(js, dtype=int), np.array(idx, dtype=int))
+            self._row_index[key] = hit
+        return hit
+
+    def _sentinel_log_weight(self, mask: np.ndarray, mm: MeasurementModel,
+                             S_inv: np.ndarray | None) -> np.ndarray | None:
+        """(N,) log importance factor p(f | jump) / q(f) of this step's sentinels ("prior" weighting).
+
+        A sensor-fault sentinel is placed at A = y_r - h_r(z_i), the mean of the data-driven
+        proposal q(f) = N(A, s^2) (s^2 = 1 / (S^-1)_rr: the row's variance given the others, R_rr
+        without the Kalman correction); with the uniform prior p(f | jump) = 1 / L on
+        [-amplitude_max, amplitude_max] its weight must carry p / q = sqrt(2 pi) s / L. Its own
+        likelihood (residual 0 on row r) is then worth 1/L against a mode-0 particle's N(e; 0, s^2):
+        a sentinel wins only when e^2 / s^2 > 2 log(L / (sqrt(2 pi) s)) (a GLR threshold).
+        """
+        js, idx = self._sentinel_rows(mask)
+        if js.size == 0:
+            return None
+        if S_inv is not None:
+            s = 1.0 / np.sqrt(np.maximum(np.diag(S_inv)[idx], 1e-300))
+        else:
+            s = mm.sigma[idx]
+        c = self._prior_logc[js] + np.log(s)
+        return c @ self.sentinels[js]
 
     def _loglik(self, X: np.ndarray, yv: np.ndarray, mm: MeasurementModel) -> np.ndarray:
         if mm.m == 0:
@@ -178,6 +224,7 @@ class ParticleFilter:
             self.last_amplitude = A
             self.sentinels = jump(F, self.modes, A, avail, self.transition.pi01,
                                   self.transition.pi10, v, self.forced_zero, self.rejump)
+        S_inv = None
         if self.correction and mm.m > 0:
             mean, P = weighted_mean_cov(X, self.w)
             K, S_inv = kalman_gain(P, mm.H, mm.R)
@@ -188,6 +235,10 @@ class ParticleFilter:
                 X[N_AIRFRAME:] *= self.modes
         else:
             ll = self._loglik(X, yv, mm)
+        if self._prior_logc is not None and mm.m > 0:
+            bonus = self._sentinel_log_weight(mask, mm, S_inv)
+            if bonus is not None:
+                ll += bonus
         if not np.isfinite(X @ self.w).all():   # a particle left the finite numbers: drop it
             finite = np.isfinite(X).all(axis=0)
             ll = np.where(finite, ll, -np.inf)
