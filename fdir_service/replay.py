@@ -23,6 +23,17 @@ from typing import Any
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
+from fdir_service.metrics import (
+    HOLD_S,
+    P_THRESHOLD,
+    episode_delays,
+    false_alarm_fraction,
+    hold_steps_of,
+    missed_fraction,
+    rmse,
+)
+from fdir_service.metrics import TABLE_TIMES as REPORT_TIMES
+from fdir_service.metrics import finite_or_none as _num
 from fdir_service.recording import schemas as S
 from fdir_service.recording.logtools import McapLog
 from fdir_service.recording.recorder import ESTIMATE_TOPIC, RAW_IN_TOPIC, Recorder
@@ -31,9 +42,7 @@ from fdir_service.recording.truth import TRUTH_TOPIC
 NON_DETERMINISTIC_FIELDS = ("latency_s",)
 """`/fdir/estimate` fields excluded from the bit-identity check (wall-clock processing time)."""
 
-HOLD_S = 0.25        # detection: P(fault) > 0.5 held this long (SPEC section 8)
-P_THRESHOLD = 0.5
-REPORT_TIMES = (10.05, 20.05, 30.05, 40.05)
+# HOLD_S, P_THRESHOLD, REPORT_TIMES and the metric functions: fdir_service.metrics (SPEC section 8)
 
 # keys of the "config" metadata record written by the pipeline (first match wins)
 _SERVICE_KEYS = ("service_toml", "service", "config_toml", "config")
@@ -149,23 +158,6 @@ def align_to_truth(t_est: np.ndarray, t_truth: np.ndarray, tol_s: float) -> tupl
     return order[pick], ok
 
 
-def held_above(prob: np.ndarray, hold_steps: int, threshold: float = P_THRESHOLD) -> np.ndarray:
-    """held[k]: prob > threshold on every step k .. k + hold_steps - 1 (steps past the end: not held)."""
-    above = np.asarray(prob, float) > threshold
-    K = above.size
-    c = np.concatenate([[0], np.cumsum(above)])
-    held = np.zeros(K, bool)
-    n = K - hold_steps + 1
-    if n > 0:
-        held[:n] = (c[hold_steps:] - c[:n]) == hold_steps
-    return held
-
-
-def _num(v: float) -> float | None:
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
 def score(est: Sequence[dict[str, Any]], truth: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """SPEC section 8 metrics of one run against the simulator truth.
 
@@ -183,7 +175,7 @@ def score(est: Sequence[dict[str, Any]], truth: Sequence[dict[str, Any]]) -> dic
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.05
     idx, ok = align_to_truth(t, tr["t"], tol_s=0.5 * dt + 1e-9)
     t = t[ok]
-    hold_steps = max(1, round(HOLD_S / dt))
+    hold_steps = hold_steps_of(dt, HOLD_S)
     out: dict[str, Any] = {"frames": int(ok.sum()), "frames_unmatched": int((~ok).sum()), "faults": {},
                            "states": {}}
     for fid in fault_ids_of(est[0]):
@@ -194,28 +186,21 @@ def score(est: Sequence[dict[str, Any]], truth: Sequence[dict[str, Any]]) -> dic
         f_hat = e[f"f_{fid}"][ok]
         p = e[f"pf_{fid}"][ok]
         err = f_hat - f_true
-        above = p > P_THRESHOLD
-        held = held_above(p, hold_steps)
-        episodes = []
-        a = np.concatenate([[False], active, [False]]).astype(np.int8)
-        for s, end in zip(np.flatnonzero(np.diff(a) == 1), np.flatnonzero(np.diff(a) == -1), strict=True):
-            hits = np.flatnonzero(held[s:end])
-            episodes.append({"onset_s": float(t[s]), "end_s": float(t[end - 1]),
-                             "delay_s": float(t[s + hits[0]] - t[s]) if hits.size else None})
+        episodes = [{"onset_s": float(t[s]), "end_s": float(t[end - 1]), "delay_s": d}
+                    for s, end, d in episode_delays(t, p, active, hold_steps, P_THRESHOLD)]
         at = {f"{x:.2f}": _num(abs(err[int(np.argmin(np.abs(t - x)))])) for x in REPORT_TIMES
               if t.size and t[0] - dt <= x <= t[-1] + dt}
         out["faults"][fid] = {
-            "rmse": _num(np.sqrt(np.nanmean(err ** 2))),
+            "rmse": _num(rmse(f_hat, f_true)),
             "abs_error_at": at,
             "episodes": episodes,
             "delay_s": episodes[0]["delay_s"] if episodes else None,
-            "false_alarm_fraction": _num(np.mean(above[~active])) if (~active).any() else None,
-            "missed_fraction": _num(np.mean(~above[active])) if active.any() else None,
+            "false_alarm_fraction": false_alarm_fraction(p, active, P_THRESHOLD),
+            "missed_fraction": missed_fraction(p, active, P_THRESHOLD),
         }
     for s in S.STATE_NAMES:
         if f"x_{s}" in e and s in tr:
-            err = e[f"x_{s}"][ok] - tr[s][idx][ok]
-            r = _num(np.sqrt(np.nanmean(err ** 2)))
+            r = _num(rmse(e[f"x_{s}"][ok], tr[s][idx][ok]))
             out["states"][s] = {"rmse": r}
             if s in ("theta", "q") and r is not None:
                 out["states"][s]["rmse_deg"] = math.degrees(r)

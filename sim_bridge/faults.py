@@ -11,6 +11,8 @@ key time up to rounding (e.g. 200 * 0.05) fall on the intended side.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from fdir_service.scenario import FaultChannel, ProfileComponent, Scenario
@@ -37,11 +39,33 @@ def component_value(comp: ProfileComponent, t: float | np.ndarray) -> np.ndarray
     return np.where(active, val, 0.0)
 
 
+def _component_scalar(comp: ProfileComponent, t: float) -> float:
+    """component_value for one float t, in Python floats (the simulator's per-frame path)."""
+    if not (comp.start_s - EDGE_TOL_S <= t < comp.end_s - EDGE_TOL_S):
+        return 0.0
+    if comp.shape == "step":
+        return float(comp.amplitude)
+    if comp.shape == "exponential":
+        return comp.amplitude * math.exp(min(t - comp.end_s, 0.0) / comp.tau_s)
+    if comp.shape == "ramp":
+        frac = (t - comp.start_s) / (comp.end_s - comp.start_s)
+        return comp.amplitude * min(max(frac, 0.0), 1.0)
+    if comp.shape == "intermittent":
+        phase = (t - comp.start_s + EDGE_TOL_S) % (comp.on_s + comp.off_s)
+        return float(comp.amplitude) if phase < comp.on_s else 0.0
+    raise ValueError(f"unknown fault profile shape {comp.shape!r}")
+
+
 def channel_value(channel: FaultChannel, t: float | np.ndarray) -> float | np.ndarray:
     """The channel's true fault value(s) (SI) at time(s) t (s): sum of its profile components.
 
     A scalar t gives a float, an array of times an array of the same shape.
     """
+    if isinstance(t, (float, int)):
+        total = 0.0
+        for comp in channel.profile:
+            total = total + _component_scalar(comp, float(t))
+        return total
     tt = np.asarray(t, dtype=float)
     total = np.zeros(tt.shape)
     for comp in channel.profile:

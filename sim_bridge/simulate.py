@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -64,9 +65,22 @@ class Trajectory:
     outputs: list = field(default_factory=list)
 
 
+@lru_cache(maxsize=32)
+def _design_model(airframe: AirframeParams, airspeed: float, altitude: float, dt: float):
+    return linearize(airframe, airspeed, altitude, dt)
+
+
 def default_autopilot(scenario: Scenario, airframe: AirframeParams) -> Autopilot:
-    """The autopilot designed on the derived linear model at the scenario's trim and dt."""
-    model = linearize(airframe, scenario.truth.airspeed_mps, scenario.truth.altitude_m, scenario.dt_s)
+    """The autopilot designed on the derived linear model at the scenario's trim and dt.
+
+    The linearisation and the LQR gains are computed once per process for a given airframe, trim
+    point and dt (a campaign flies hundreds of runs with the same design).
+    """
+    args = (airframe, scenario.truth.airspeed_mps, scenario.truth.altitude_m, scenario.dt_s)
+    try:
+        model = _design_model(*args)
+    except TypeError:       # an unhashable parameter set: design afresh
+        model = linearize(*args)
     return Autopilot(model, scenario.command, scenario.dt_s)
 
 

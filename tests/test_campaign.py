@@ -178,3 +178,25 @@ def test_failed_runs_are_reported_and_left_out_of_the_statistics(ch4):
     # one surviving run: RMSE_k = |error|, whose time mean is 0.5 sqrt(2 / pi) for N(0, 0.5^2)
     assert doc["rmse"]["f_gnss"]["mean"] == pytest.approx(0.5 * np.sqrt(2 / np.pi), rel=0.1)
     assert doc["detection"]["gnss"]["missed_fraction"] == 0.0
+
+
+def test_report_explains_misses_and_publishes_into_docs(ch4, tmp_path):
+    """A miss against the thesis prints its investigated reason; publish copies the scenario folder
+    to DOCS/results/<id>/ and regenerates DOCS/results.md (status, misses, figure links)."""
+    from sim_bridge.report import EXPLANATIONS, READING_NOTES, publish
+
+    assert {("ch4", "f_gnss"), ("ch5a", "f_theta"), ("ch5b", "f_theta"), ("ch5c", "f_de"),
+            ("ch5c", "f_q"), ("ch6", "f_theta")} <= set(EXPLANATIONS)
+    camp = run_campaign(ch4, 2, seed=1, workers=1, progress=False, builder=fake_builder,
+                        filters=("JMRPF", GATE))
+    camp.filters["JMRPF"].f_hat[:] += 20.0          # far above the thesis's 1.26 m / 0.72 m
+    write_report(camp, tmp_path / "results" / "ch4", make_figures=False)
+    report = (tmp_path / "results" / "ch4" / "report.md").read_text()
+    assert "**Miss on f_gnss**" in report and EXPLANATIONS[("ch4", "f_gnss")][:40] in report
+    assert READING_NOTES[0][:30] in report
+    page = publish(tmp_path / "results", tmp_path / "docs")
+    assert page == tmp_path / "docs" / "results.md"
+    assert (tmp_path / "docs" / "results" / "ch4" / "results.json").exists()
+    text = page.read_text()
+    assert "**Status: interim**" in text and "| ch4 | 2 |" in text
+    assert "## Where we miss, and why" in text and EXPLANATIONS[("ch4", "f_baro")][:40] in text

@@ -148,3 +148,30 @@ def test_gate_on_the_project_kf_in_closed_loop(ch4):
     single = t < 20.0
     assert np.max(np.abs(traj.nav[single, 0] - traj.z[single, 0])) < 5.0
     assert np.max(np.abs(traj.nav[:, 0] - traj.z[:, 0])) > 15.0   # the overlap defeats it
+
+
+def test_fast_paths_equal_the_generic_snapshot_path():
+    """On the project's KF the gate computes the test ratios from the prediction and updates once
+    (or, without meas.H / R, restores only (x, P) on a rejection) and skips kf.output; both must
+    give the generic path's results (snapshot of the whole filter, kf.output) in closed loop."""
+    from sim_bridge.simulate import run
+
+    sc = load_scenario("ch4")
+    outs = []
+    for pre, xp in ((True, True), (False, True), (False, False)):
+        gate = build_gating_filter(sc, np.random.default_rng(0))
+        assert gate._xp and gate._pre
+        gate._pre, gate._xp = pre, xp
+        traj = run(sc, 5, seconds=30.0, nav=gate.step)
+        outs.append(traj)
+    for a in outs[:2]:
+        _same(a, outs[2])
+
+
+def _same(a, b):
+    assert any(o.fault_probability.any() for o in a.outputs)      # the gate did reject/declare
+    np.testing.assert_allclose(a.z, b.z, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.array([o.x_mean for o in a.outputs]),
+                               np.array([o.x_mean for o in b.outputs]), rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(np.array([o.fault_probability for o in a.outputs]),
+                                  np.array([o.fault_probability for o in b.outputs]))

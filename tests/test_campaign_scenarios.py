@@ -1,9 +1,13 @@
 """The thesis campaigns end to end with the real simulator and filters, small: every scenario runs
 through `sim-bridge experiment`, results.json has the issue-4 structure, and the thesis's ch4 and
-ch5a orderings hold on mean RMSE (fixed seed; runs and particles chosen so the margins are wide:
-ch4 at 4 runs x 300 particles held on seeds 0, 1, 2 with JMRPF 1.4-3x better than IMM-KF; ch5a at
-6 runs x 600 particles measured RJMRPF 0.47 < JMRPF 1.01 < RPF 1.53 deg. Fewer ch5a particles make
-JMRPF vs RPF a coin flip: at 4 x 300 it measured 1.68 vs 1.63)."""
+ch5a orderings hold on mean RMSE (fixed seed 0; runs and particles chosen from measurements on
+seeds 0-3 so that the ordering is not a coin flip, with the filters of this commit):
+- ch5a at 6 runs x 600 particles: RJMRPF < JMRPF < RPF f_theta 0.31 < 0.79 < 1.26 deg (seed 0),
+  0.34 < 0.71 < 2.53 (1), 0.34 < 0.72 < 1.03 (2). Fewer particles make JMRPF vs RPF a coin flip.
+- ch4 at 6 runs x 1000 particles: JMRPF vs IMM-KF f_gnss 10.0 vs 12.8 m (seed 0), 4.4 (1),
+  12.0 (2), 1.4 (3); held on all four. JMRPF's error is heavy-tailed (runs locked in mode 1 stay
+  20-30 m off, docs/estimation.md), so at 300 particles it failed on seed 2 with 4 and 8 runs.
+"""
 
 import json
 
@@ -14,7 +18,7 @@ from sim_bridge.campaign import GATE, run_campaign
 from sim_bridge.cli import main as sim_bridge_main
 from sim_bridge.report import COLUMNS, check_orderings, summarise
 
-ORDER_SETTINGS = {"ch4": (4, 300), "ch5a": (6, 600)}   # (runs, particles)
+ORDER_SETTINGS = {"ch4": (6, 1000), "ch5a": (6, 600)}   # (runs, particles)
 SEED = 0
 
 

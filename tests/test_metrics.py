@@ -1,9 +1,10 @@
-"""SPEC section 8 metrics on hand-made data with known answers."""
+"""SPEC section 8 metrics (fdir_service.metrics, shared by the campaigns and the replay scorer) on
+hand-made data with known answers."""
 
 import numpy as np
 import pytest
 
-from sim_bridge.metrics import (
+from fdir_service.metrics import (
     detection_metrics,
     fault_episodes,
     held_above,
@@ -85,3 +86,32 @@ def test_detection_metrics_counts_a_missed_episode():
     assert m["detected_fraction"] == 0.5
     assert m["delay_s"] == pytest.approx(2.0)
     assert m["false_alarm_fraction"] == 0.0
+
+
+def test_single_run_helpers():
+    from fdir_service.metrics import episode_delays, false_alarm_fraction, missed_fraction, rmse
+
+    assert rmse([1.0, -1.0, np.nan, 3.0], [0.0, 0.0, 0.0, 0.0]) == pytest.approx(np.sqrt(11 / 3))
+    assert np.isnan(rmse([np.nan], [0.0]))
+    active = (T >= 10.0) & (T < 20.0)
+    p = np.where((T >= 11.0) & (T < 20.0), 0.9, 0.0)
+    p[T >= 45.0] = 0.9
+    eps = episode_delays(T, p, active, hold_steps=5)
+    assert len(eps) == 1 and eps[0][2] == pytest.approx(1.0)
+    assert false_alarm_fraction(p, active) == pytest.approx(np.sum(T >= 45.0) / np.sum(~active))
+    assert missed_fraction(p, active) == pytest.approx(20 / np.sum(active))
+    assert missed_fraction(p, np.zeros_like(active)) is None
+    assert episode_delays(T, np.zeros_like(p), active, 5)[0][2] is None
+
+
+def test_campaign_and_replay_share_the_definitions():
+    """sim_bridge.metrics re-exports fdir_service.metrics; replay scores with the same functions."""
+    import fdir_service.metrics as shared
+    import fdir_service.replay as replay
+    import sim_bridge.metrics as campaign
+
+    for name in ("rmse_over_runs", "detection_metrics", "median_run", "held_above", "table_columns"):
+        assert getattr(campaign, name) is getattr(shared, name)
+    for name in ("episode_delays", "false_alarm_fraction", "missed_fraction", "rmse"):
+        assert getattr(replay, name) is getattr(shared, name)
+    assert replay.REPORT_TIMES == shared.TABLE_TIMES and replay.HOLD_S == shared.HOLD_S

@@ -80,30 +80,68 @@ class GatedKF:
         self.declared = np.zeros(m, bool)           # row declared faulty
         self.rejected = np.zeros(m, bool)           # row rejected from fusion this frame
         self._fail_since = np.full(m, np.nan)       # time the current run of failures began
+        self._rows_matrix = np.array(self._rows, dtype=float).reshape(len(self._rows), m)
+        self._nan_f = np.full(len(self.fault_ids), np.nan)
+        self._gate2 = float(self.gate) ** 2
+        # The project's KF (predict / update / output, state in x and P, update rebinding them):
+        # predict once, update, and on a rejection restore (x, P) and redo only the update.
+        self._split = all(hasattr(kf, a) for a in ("predict", "update", "output"))
+        self._xp = self._split and all(hasattr(kf, a) for a in ("x", "P", "n_eff"))
+        # ... and with a linear measurement model (meas.H, meas.R, as kalman.KalmanFilter): the test
+        # ratios come from the prediction alone, so they are computed first and the update runs once.
+        meas = getattr(kf, "meas", None)
+        self._pre = self._xp and hasattr(meas, "H") and hasattr(meas, "R")
+        if self._pre:
+            self._H = np.asarray(meas.H, float)
+            self._r_diag = np.diagonal(np.asarray(meas.R, float)).copy()
 
     def step(self, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray) -> StepOutput:
         mask = np.asarray(mask, bool)
-        split = all(hasattr(self.kf, a) for a in ("predict", "update", "output"))
+        kf = self.kf
+        split, xp = self._split, self._xp
+        if self._pre:   # nu = y - H x_pred, S_ii = (H P_pred H^T)_ii + R_ii: gate, then one update
+            kf.predict(u)
+            H = self._H
+            nu = np.asarray(y, float) - H @ kf.x
+            s = np.einsum("ij,ij->i", H @ kf.P, H) + self._r_diag
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = nu * nu / (self._gate2 * s)
+            ratio[~mask] = np.nan
+            fail = mask & (ratio > 1.0)
+            kf.update(y, mask & ~fail)
+            return self._finish(t, mask, ratio, fail, kf.x, kf.P, kf.n_eff)
         if split:       # the project's KF: predict once, update, redo only the update if gated
-            self.kf.predict(u)
-            before = _snapshot(self.kf)
-            self.kf.update(y, mask)
+            kf.predict(u)
+            before = (kf.x.copy(), kf.P.copy()) if xp else _snapshot(kf)
+            kf.update(y, mask)
         else:           # any step-only filter: redo the whole step
-            before = _snapshot(self.kf)
-            out = self.kf.step(t, y, mask, u)
-        nu = np.asarray(self.kf.last_innovation, float)
-        s = np.diag(np.asarray(self.kf.last_innovation_cov, float))
+            before = _snapshot(kf)
+            out = kf.step(t, y, mask, u)
+        nu = np.asarray(kf.last_innovation, float)
+        s = np.diagonal(np.asarray(kf.last_innovation_cov, float))
         with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(mask, nu**2 / (self.gate**2 * s), np.nan)
+            ratio = nu * nu / (self._gate2 * s)
+        ratio[~mask] = np.nan
         fail = mask & (ratio > 1.0)
         if fail.any():
-            self.kf = before
-            if split:
-                self.kf.update(y, mask & ~fail)
+            if xp:
+                kf.x, kf.P = before
+                kf.update(y, mask & ~fail)
             else:
-                out = self.kf.step(t, y, mask & ~fail, u)
+                self.kf = kf = before
+                if split:
+                    kf.update(y, mask & ~fail)
+                else:
+                    out = kf.step(t, y, mask & ~fail, u)
+        if xp:          # what kf.output(t) gives, without its (discarded) fault probabilities
+            return self._finish(t, mask, ratio, fail, kf.x, kf.P, kf.n_eff)
         if split:
-            out = self.kf.output(t)
+            out = kf.output(t)
+        return self._finish(out.t, mask, ratio, fail, out.x_mean, out.x_cov, out.n_eff, copy=False)
+
+    def _finish(self, t: float, mask: np.ndarray, ratio: np.ndarray, fail: np.ndarray, x: np.ndarray,
+                P: np.ndarray, n_eff: float, copy: bool = True) -> StepOutput:
+        """Hold / declare bookkeeping and the StepOutput of the frame."""
         self.test_ratio = ratio
         self.rejected = fail
         passed = mask & ~fail
@@ -111,10 +149,10 @@ class GatedKF:
         start = fail & np.isnan(self._fail_since)
         self._fail_since[start] = t
         self.declared = fail & (t - self._fail_since >= self.hold_s - 1e-9)
-        prob = np.array([1.0 if self.declared[r].any() else 0.0 for r in self._rows])
-        return StepOutput(t=out.t, x_mean=out.x_mean, x_cov=out.x_cov, fault_ids=self.fault_ids,
-                          fault_estimate=np.full(len(self.fault_ids), np.nan),
-                          fault_probability=prob, n_eff=out.n_eff, resampled=False)
+        prob = (self._rows_matrix @ self.declared > 0.0).astype(float)
+        return StepOutput(t=t, x_mean=x.copy() if copy else x, x_cov=P.copy() if copy else P,
+                          fault_ids=self.fault_ids, fault_estimate=self._nan_f.copy(),
+                          fault_probability=prob, n_eff=n_eff, resampled=False)
 
     def top_particles(self, k: int = 20) -> tuple[np.ndarray, np.ndarray]:
         return self.kf.top_particles(k)

@@ -32,12 +32,15 @@ def add_parser(subparsers) -> None:
                    help="comma-separated subset of filters (default: the scenario's plus EKF-GATE)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--publish", metavar="DOCS", default=None,
+                   help="also publish the results into the docs: copy each scenario folder to "
+                   "DOCS/results/<id>/ and regenerate DOCS/results.md (e.g. --publish docs)")
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
     from sim_bridge.campaign import run_campaign
-    from sim_bridge.report import check_orderings, combined_markdown, write_report
+    from sim_bridge.report import check_orderings, combined_markdown, publish, write_report
 
     if args.runs < 1:
         raise ConfigError(f"--runs: expected a positive integer, got {args.runs}")
@@ -47,6 +50,7 @@ def main(args: argparse.Namespace) -> int:
     filters = args.filters.split(",") if args.filters else None
     t0 = time.perf_counter()
     results = {}
+    outs: dict[str, Path] = {}
     for sid in ids:
         sc = load_scenario(sid)
         if args.out is None:
@@ -58,6 +62,7 @@ def main(args: argparse.Namespace) -> int:
                             dask=args.dask, progress=not args.quiet, filters=filters)
         doc = write_report(camp, out, make_figures=not args.no_figures)
         results[sc.id] = doc
+        outs[sc.id] = out
         print(f"{sc.id}: {args.runs} runs x {len(camp.filters)} filters "
               f"({', '.join(camp.filters)}), N = {camp.particles}: {time.perf_counter() - ts:.1f} s "
               f"-> {out}/report.md")
@@ -73,5 +78,23 @@ def main(args: argparse.Namespace) -> int:
         rel = " < " if o["strict"] else " <= "
         print(f"ordering {o['scenario']} {o['quantity']}: {rel.join(o['chain'])}: "
               f"{'holds' if o['holds'] else 'FAILS'} ({json.dumps(o['values'])})")
+    if args.publish:
+        for sid, out in outs.items():
+            if out.name == sid:
+                page = publish(out.parent, args.publish, [sid])
+            else:
+                page = _publish_renamed(out, sid, args.publish)
+        print(f"published: {page} and {Path(args.publish) / 'results'}/<id>/")
     print(f"wall time {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def _publish_renamed(out: Path, sid: str, docs: str) -> Path:
+    """publish() for an --out folder not named after its scenario: stage it as <tmp>/<sid>/."""
+    import tempfile
+
+    from sim_bridge.report import publish
+
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / sid).symlink_to(out.resolve(), target_is_directory=True)
+        return publish(tmp, docs, [sid])
