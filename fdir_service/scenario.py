@@ -141,6 +141,8 @@ class EstimatorConfig:
     sentinel_weighting: str = "thesis"   # "thesis" (Alg. 4.1 as written) | "prior": a sensor-fault
                                          # sentinel's weight carries p(f | jump) / q(f), see
                                          # docs/estimation.md; needs faults.amplitude_max
+    jitter: str = "global"               # "global" (thesis: one kernel from the whole cloud) |
+                                         # "per_mode": one kernel per mode pattern (jump filters)
     imm: ImmConfig = field(default_factory=ImmConfig)
     gating: GatingConfig = field(default_factory=GatingConfig)
 
@@ -410,6 +412,7 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
         saddlepoint_window=e.pop("saddlepoint_window", "integer", 3, positive=True),
         sentinel_weighting=e.pop("sentinel_weighting", "string", "thesis",
                                  choices=("thesis", "prior")),
+        jitter=e.pop("jitter", "string", "global", choices=("global", "per_mode")),
         imm=imm, gating=gating,
     )
     e.finish()

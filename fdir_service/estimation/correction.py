@@ -9,6 +9,7 @@ P_yy = H P H^T with P the weighted (n, n) covariance of the cloud, computed once
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg.lapack import dpotrf, dtrtri
 
 
 def weighted_mean_cov(X: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -27,8 +28,54 @@ def kalman_gain(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> tuple[np.ndarray
     """
     PHt = P @ H.T
     S = H @ PHt + R
-    S_inv = np.linalg.inv(S)
-    return PHt @ S_inv, S_inv
+    S_inv = _spd_inverse(S, R)
+    if S_inv is None:       # the cloud's covariance is not finite: no correction this step
+        return np.zeros_like(PHt), _spd_inverse(R, R, fallback=False)
+    K = PHt @ S_inv
+    if not np.isfinite(K).all():
+        return np.zeros_like(PHt), S_inv
+    return K, S_inv
+
+
+def _spd_inverse(S: np.ndarray, R: np.ndarray, fallback: bool = True) -> np.ndarray | None:
+    """Inverse of a symmetric positive-definite S (m, m) that never raises.
+
+    Symmetrised S -> Cholesky (LAPACK dpotrf/dpotri); if that fails (S numerically singular: a
+    cloud whose spread exploded to 1e40 and more makes S = H P H^T + R lose R to round-off),
+    eigen-decomposition with the eigenvalues clipped to at least the smallest diagonal entry of R
+    (S >= R holds exactly). None if S is not finite (or for fallback=False, R^-1 from the
+    diagonal). The result is finite and symmetric.
+    """
+    if not fallback:
+        d = np.diag(R)
+        return np.diag(1.0 / np.where(d > 0, d, 1.0))
+    if not np.isfinite(S).all():
+        return None
+    floor = float(np.min(np.diag(R))) if R.size else 0.0
+    tr = float(np.trace(S))
+    if floor > 0 and tr < 1e10 * floor:
+        # S >= R, so cond(S) <= trace(S) / min R < 1e10: the plain inverse is accurate (and the
+        # cheapest call); symmetrised against round-off
+        inv = np.linalg.inv(S)
+        inv += inv.T
+        inv *= 0.5
+        return inv
+    S = 0.5 * (S + S.T)
+    L, info = dpotrf(S, lower=1, clean=1)
+    if info == 0:
+        Li, info = dtrtri(L, lower=1)
+        if info == 0:
+            inv = Li.T @ Li
+            if np.isfinite(inv).all():
+                return inv
+    floor = floor if floor > 0 else 1e-12
+    try:
+        lam, V = np.linalg.eigh(S)
+    except np.linalg.LinAlgError:
+        return None
+    lam = np.maximum(lam, floor)
+    inv = (V / lam) @ V.T
+    return inv if np.isfinite(inv).all() else None
 
 
 def correct(X: np.ndarray, innovation: np.ndarray, K: np.ndarray) -> None:

@@ -159,7 +159,8 @@ def build_particle_filter(name: str, scenario: Scenario, rng: np.random.Generato
     return ParticleFilter(name, transition=transition, amplitude=amp if jm else None,
                           correction=correction, resampler=est.resampler,
                           threshold=est.resample_threshold, h=h, shrink=not jm, mode0=est.mode0,
-                          sentinel_prior_width=prior_width, **common)
+                          sentinel_prior_width=prior_width,
+                          jitter_per_mode=jm and est.jitter == "per_mode", **common)
 
 
 def build_filter(name: str, scenario: Scenario, rng: np.random.Generator,

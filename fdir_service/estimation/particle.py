@@ -9,7 +9,12 @@ One class, `ParticleFilter`, configured with:
   (`amplitude.AmplitudePredictor`) and the mode-0 handling ("forced_zero" | "reset_on_exit");
 - correction=True adds the Kalman correction of every particle (`correction`, the R variants);
 - a resampler (`resample`) triggered by N_eff < Gamma N (or every step: the bootstrap filter);
-- a regulariser (`regularize`, Epanechnikov, h = k h_opt; None: no jitter).
+- a regulariser (`regularize`, Epanechnikov, h = k h_opt; None: no jitter); jitter_per_mode=True
+  uses one kernel per mode pattern with a floor on the mode-1 fault variance
+  (`regularize.regularize_per_mode`, scenario `estimator.jitter = "per_mode"`);
+- sentinel_prior_width (nf,) = 2 amplitude_max per sensor fault: the "prior" sentinel weighting
+  (scenario `estimator.sentinel_weighting = "prior"`): sentinels drawn from N(A, s^2) and
+  weighted by p(f | jump) / q(f), see `_spread_sentinels` and docs/estimation.md.
 
 One step: propagate + noise (mode-0 fault entries get none when forced to zero) -> [adaptive:
 Pfa/Pmd -> transition matrix] -> jump (sentinels at the predicted amplitude) -> [Kalman correction]
@@ -27,8 +32,11 @@ from fdir_service.estimation.correction import gaussian_loglik, kalman_gain, wei
 from fdir_service.estimation.jump import MODE0_HANDLING, jump
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
-from fdir_service.estimation.regularize import regularize
+from fdir_service.estimation.regularize import regularize, regularize_per_mode
 from fdir_service.estimation.resample import resampler as get_resampler
+
+STATE_BOUND = 1e6
+"""A particle with any |state| >= this (SI: m, m/s, rad, rad/s) has diverged: it gets weight 0."""
 
 
 class ParticleFilter:
@@ -46,7 +54,8 @@ class ParticleFilter:
                  correction: bool = False, resampler: str = "multinomial", threshold: float = 0.5,
                  always_resample: bool = False, h: float | None = None, shrink: bool = False,
                  mode0: str = "forced_zero", fault_threshold: np.ndarray | None = None,
-                 rejump: bool = False, sentinel_prior_width: np.ndarray | None = None) -> None:
+                 rejump: bool = False, sentinel_prior_width: np.ndarray | None = None,
+                 jitter_per_mode: bool = False) -> None:
         if mode0 not in MODE0_HANDLING:
             raise ValueError(f"mode0 must be one of {MODE0_HANDLING}, got {mode0!r}")
         if transition is not None and amplitude is None:
@@ -77,6 +86,11 @@ class ParticleFilter:
         self.fault_threshold = (np.full(self.nf, np.inf) if fault_threshold is None
                                 else np.asarray(fault_threshold, dtype=float))
         self.rejump = bool(rejump)
+        self.jitter_per_mode = bool(jitter_per_mode) and transition is not None and self.nf > 0
+        self._fault_var_floor = None
+        if self.jitter_per_mode:
+            sig = np.asarray(amplitude.sigma, dtype=float)
+            self._fault_var_floor = np.where(np.isfinite(sig), sig, 0.0) ** 2
         # "prior" sentinel weighting: log(sqrt(2 pi) / L_j) per sensor fault j (NaN: thesis weighting)
         self._prior_logc = None
         if sentinel_prior_width is not None and transition is not None:
@@ -86,8 +100,12 @@ class ParticleFilter:
             c[layout.sensor_row < 0] = np.nan
             if np.isfinite(c).any():
                 self._prior_logc = c
+        self.spread_sentinels = True
+        """"prior" weighting: draw sentinels from q = N(A, s^2) (True) or place them at A with the
+        marginal weight sqrt(2 pi) s / L (False: q's mode, a Laplace approximation)."""
         self._row_index: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
         self.reinitialisations = 0
+        self.x0_mean = np.asarray(x0_mean, dtype=float).copy()
         self.X = np.asarray(x0_mean, dtype=float)[:, None] + rng.standard_normal((self.n, self.N)) \
             * self.x0_std[:, None]
         self.modes = np.zeros((self.nf, self.N), dtype=bool)
@@ -148,26 +166,34 @@ class ParticleFilter:
             self._row_index[key] = hit
         return hit
 
-    def _sentinel_log_weight(self, mask: np.ndarray, mm: MeasurementModel,
-                             S_inv: np.ndarray | None) -> np.ndarray | None:
-        """(N,) log importance factor p(f | jump) / q(f) of this step's sentinels ("prior" weighting).
+    def _spread_sentinels(self, X: np.ndarray, mask: np.ndarray) -> np.ndarray | None:
+        """"prior" weighting: draw this step's sensor-fault sentinels from q and weight by p / q.
 
-        A sensor-fault sentinel is placed at A = y_r - h_r(z_i), the mean of the data-driven
-        proposal q(f) = N(A, s^2) (s^2 = 1 / (S^-1)_rr: the row's variance given the others, R_rr
-        without the Kalman correction); with the uniform prior p(f | jump) = 1 / L on
-        [-amplitude_max, amplitude_max] its weight must carry p / q = sqrt(2 pi) s / L. Its own
-        likelihood (residual 0 on row r) is then worth 1/L against a mode-0 particle's N(e; 0, s^2):
-        a sentinel wins only when e^2 / s^2 > 2 log(L / (sqrt(2 pi) s)) (a GLR threshold).
+        The jump proposes a sentinel's amplitude from the data: q(f) = N(A, s^2), A = y_r - h_r(z_i)
+        (eq. 4.16) and s = the row's filter sigma. The amplitude prior of a fault that has just
+        appeared is uniform, p(f | jump) = 1 / L on [-amplitude_max, amplitude_max], so the
+        sentinel's importance weight must carry p(f) / q(f) = sqrt(2 pi) s exp(eps^2 / 2) / L
+        (f = A + s eps) on top of its likelihood, which the filter computes as for any particle.
+        Against a mode-0 particle, a sentinel is then worth ~ 1/L against N(e; 0, s^2): it wins
+        only when e^2 / s^2 > 2 log(L / (sqrt(2 pi) s)) (a GLR threshold), instead of always
+        (the thesis's point mass at A fits row r exactly). Returns the (N,) log factor, or None.
         """
-        js, idx = self._sentinel_rows(mask)
+        js, _ = self._sentinel_rows(mask)
         if js.size == 0:
             return None
-        if S_inv is not None:
-            s = 1.0 / np.sqrt(np.maximum(np.diag(S_inv)[idx], 1e-300))
-        else:
-            s = mm.sigma[idx]
-        c = self._prior_logc[js] + np.log(s)
-        return c @ self.sentinels[js]
+        bonus = np.zeros(self.N)
+        for j in js:
+            cols = np.flatnonzero(self.sentinels[j])
+            if cols.size == 0:
+                continue
+            sj = self.meas.sigma[self.layout.sensor_row[j]]
+            if self.spread_sentinels:
+                eps = self.rng.standard_normal(cols.size)
+                X[N_AIRFRAME + j, cols] += sj * eps
+                bonus[cols] += self._prior_logc[j] + np.log(sj) + 0.5 * eps * eps
+            else:
+                bonus[cols] += self._prior_logc[j] + np.log(sj)
+        return bonus
 
     def _loglik(self, X: np.ndarray, yv: np.ndarray, mm: MeasurementModel) -> np.ndarray:
         if mm.m == 0:
@@ -224,7 +250,9 @@ class ParticleFilter:
             self.last_amplitude = A
             self.sentinels = jump(F, self.modes, A, avail, self.transition.pi01,
                                   self.transition.pi10, v, self.forced_zero, self.rejump)
-        S_inv = None
+        bonus = None
+        if self._prior_logc is not None and mm.m > 0:
+            bonus = self._spread_sentinels(X, mask)
         if self.correction and mm.m > 0:
             mean, P = weighted_mean_cov(X, self.w)
             K, S_inv = kalman_gain(P, mm.H, mm.R)
@@ -235,12 +263,13 @@ class ParticleFilter:
                 X[N_AIRFRAME:] *= self.modes
         else:
             ll = self._loglik(X, yv, mm)
-        if self._prior_logc is not None and mm.m > 0:
-            bonus = self._sentinel_log_weight(mask, mm, S_inv)
-            if bonus is not None:
-                ll += bonus
-        if not np.isfinite(X @ self.w).all():   # a particle left the finite numbers: drop it
-            finite = np.isfinite(X).all(axis=0)
+        if bonus is not None:
+            ll += bonus
+        xm = X @ self.w
+        if not (np.isfinite(xm).all() and np.abs(xm).max() < STATE_BOUND):
+            # a particle left the finite numbers (or the physically possible: |x| >= 1e6 SI) drop it
+            with np.errstate(invalid="ignore", over="ignore"):
+                finite = np.isfinite(X).all(axis=0) & (np.abs(X).max(axis=0) < STATE_BOUND)
             ll = np.where(finite, ll, -np.inf)
             X[:, ~finite] = 0.0
             self.w = np.where(finite, self.w, 0.0)
@@ -249,8 +278,10 @@ class ParticleFilter:
         if w is None:
             wsum = self.w.sum()
             prior_mean = X @ (self.w / wsum) if wsum > 0 else self.process.propagate(self.x_mean, u)
-            if not np.isfinite(prior_mean).all():
+            if not (np.isfinite(prior_mean).all() and np.abs(prior_mean).max() < STATE_BOUND):
                 prior_mean = self.x_mean.copy()
+            if not (np.isfinite(prior_mean).all() and np.abs(prior_mean).max() < STATE_BOUND):
+                prior_mean = self.x0_mean.copy()
             self._reinitialise(prior_mean)
             w = self._weights(self._loglik(self.X, yv, mm))
             if w is None:
@@ -266,12 +297,18 @@ class ParticleFilter:
         resampled = self.always_resample or n_eff < self.threshold * self.N
         if resampled:
             idx = self.resample(w, self.rng)
+            X_prev, modes_prev = self.X, self.modes
             self.X = np.take(self.X, idx, axis=1)
             if self.nf and self.transition is not None:
                 self.modes = np.take(self.modes, idx, axis=1)
+            if self.h is not None and self.jitter_per_mode:
+                regularize_per_mode(self.X, X_prev, w, idx, modes_prev, self.h, self.rng,
+                                    fault_var_floor=self._fault_var_floor)
             w.fill(1.0 / self.N)     # w is this step's own array: reuse it for the uniform weights
             self.w = w
-            if self.h is not None:
+            if self.h is not None and self.jitter_per_mode:
+                pass
+            elif self.h is not None:
                 regularize(self.X, self.x_cov, self.h, self.rng, self.shrink)
                 if self.forced_zero:
                     self.X[N_AIRFRAME:] *= self.modes

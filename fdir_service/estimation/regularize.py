@@ -95,3 +95,71 @@ def regularize(X: np.ndarray, P: np.ndarray, h: float, rng: np.random.Generator,
         X += (1.0 - a) * mean
     X += (h * D) @ epanechnikov(rng, n, N)
     return X
+
+
+def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, idx: np.ndarray,
+                        modes_prev: np.ndarray, h: float, rng: np.random.Generator,
+                        min_eff: float | None = None,
+                        fault_var_floor: np.ndarray | None = None) -> np.ndarray:
+    """Jitter a resampled jump-Markov cloud X (n, N) in place with a kernel per mode pattern.
+
+    X = X_prev[:, idx] (resampled), w_prev (N,) and modes_prev (nf, N) bool from before the
+    resampling. The particles of one mode pattern (which faults are in mode 1) are jittered with
+    h D_g eps, D_g D_g^T = the weighted covariance of that pattern's particles before resampling
+    (a kernel density estimate per mixture component). Its mode-0 fault rows have zero variance,
+    so they stay exactly 0, and a mode-0 particle's airframe states are not moved along the
+    (airframe, fault) correlation of the mode-1 particles, which the global covariance of the
+    mixture carries (ch4: p_d with f_gnss and f_baro along the unobservable direction) and which
+    would penalise mode 0 at every resample. A pattern whose effective particle count is below
+    min_eff (default 2 n) uses the global covariance conditioned on its mode-0 fault entries being
+    0 (Schur complement) instead.
+    fault_var_floor (nf,): the kernel variance of a mode-1 fault entry is at least this (the
+    variance of one frame's amplitude estimate): right after a detection the weight sits on a few
+    sentinels (N_eff ~ 1), their weighted covariance is ~0 and the kernel could not restore the
+    spread of a fault amplitude known from one frame only; the estimate stayed where the onset
+    frame's noise put it (ch4: f_gnss 5-7 m off for seconds, see docs/estimation.md).
+    """
+    n, N = X.shape
+    nf = modes_prev.shape[0]
+    na = n - nf
+    code_prev = np.zeros(N, dtype=np.int64)
+    for j in range(nf):
+        code_prev |= modes_prev[j].astype(np.int64) << j
+    code_new = code_prev[idx]
+    if min_eff is None:
+        min_eff = 2.0 * n
+    eps = epanechnikov(rng, n, N)
+    P_glob = None
+    for g in np.unique(code_new):
+        sel_prev = code_prev == g
+        wg = w_prev[sel_prev]
+        W = wg.sum()
+        cols = np.flatnonzero(code_new == g)
+        on = np.array([(g >> j) & 1 for j in range(nf)], dtype=bool)
+        if W > 0 and W * W / max(np.dot(wg, wg), 1e-300) >= min_eff:
+            Xg = X_prev[:, sel_prev]
+            mean = Xg @ wg / W
+            dX = Xg - mean[:, None]
+            P = (dX * (wg / W)) @ dX.T
+        else:
+            if P_glob is None:
+                mean = X_prev @ w_prev
+                dX = X_prev - mean[:, None]
+                P_glob = (dX * w_prev) @ dX.T
+            P = P_glob.copy()
+            off = na + np.flatnonzero(~on)
+            keep = np.setdiff1d(np.arange(n), off)
+            if off.size:
+                Poo = P[np.ix_(off, off)]
+                Pko = P[np.ix_(keep, off)]
+                if np.all(np.diag(Poo) > 1e-300):
+                    P[np.ix_(keep, keep)] -= Pko @ np.linalg.solve(Poo, Pko.T)
+                P[off, :] = 0.0
+                P[:, off] = 0.0
+        if fault_var_floor is not None:
+            for j in np.flatnonzero(on):
+                if P[na + j, na + j] < fault_var_floor[j]:
+                    P[na + j, na + j] = fault_var_floor[j]
+        D = covariance_factor(P)
+        X[:, cols] += (h * D) @ eps[:, cols]
+    return X
