@@ -56,6 +56,7 @@ class Autopilot:
         self.link = AutopilotLink(self.scenario)
         self.conn = open_link(f"udpout:127.0.0.1:{port}", source_system=1, source_component=1)
         self.k0 = 0
+        self.gcs_s = 0.0   # this process decoding the replies (the ground station's work, not the service's)
 
     def handshake(self, timeout: float = 60.0) -> None:
         end = time.monotonic() + timeout
@@ -76,13 +77,16 @@ class Autopilot:
             if not ready:
                 return None
             now = time.perf_counter()
-            while True:
-                data = self.conn.recv(65536)
-                if not data:
-                    break
-                for m in self.link.parse(data.encode("latin-1") if isinstance(data, str) else data):
-                    if t_ms is None or (m.get_type() == "FDIR_ESTIMATE" and m.time_boot_ms == t_ms):
-                        return now
+            try:
+                while True:
+                    data = self.conn.recv(65536)
+                    if not data:
+                        break
+                    for m in self.link.parse(data.encode("latin-1") if isinstance(data, str) else data):
+                        if t_ms is None or (m.get_type() == "FDIR_ESTIMATE" and m.time_boot_ms == t_ms):
+                            return now
+            finally:
+                self.gcs_s += time.perf_counter() - now
 
     def frame(self) -> tuple[int, list[bytes], np.ndarray, float]:
         fr = self.stepper.frame()
@@ -91,24 +95,40 @@ class Autopilot:
         return int(round(fr.t * 1000)), sens, u, fr.t
 
     def run(self, frames: int, rate_hz: float | None) -> tuple[np.ndarray, float]:
-        """Latencies (s) of `frames` frames sent at rate_hz (None: lockstep), and the wall time."""
+        """Latencies (s) of `frames` frames sent at rate_hz (None: lockstep), and the wall time.
+        `self.sim_s` / `self.encode_s`: wall time of the simulator's own stepping (truth, sensors,
+        autopilot) and MAVLink encoding in this process, the simulator's share of lockstep."""
         lat = []
+        self.sim_s = self.encode_s = self.gcs_s = 0.0
         t0 = time.monotonic()
         for k in range(frames):
             if rate_hz:
                 delay = t0 + k / rate_hz - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-            t_ms, sens, u, t = self.frame()
+            c0 = time.perf_counter()
+            fr = self.stepper.frame()
+            u = self.ap.update(fr.t, fr.z_true)
+            c1 = time.perf_counter()
+            sens = self.link.sensor_messages(fr.t, fr.y, fr.mask, fr.static_pressure_pa)
+            t_ms, t = int(round(fr.t * 1000)), fr.t
+            c2 = time.perf_counter()
             for b in sens:
                 self.conn.write(b)
             t_sent = time.perf_counter()
             deadline = time.monotonic() + (1.0 / rate_hz if rate_hz else 2.0)
             got = self.wait_estimate(t_ms, deadline)
             lat.append(np.nan if got is None else got - t_sent)
-            for b in self.link.actuator_messages(t, u):
+            c3 = time.perf_counter()
+            act = self.link.actuator_messages(t, u)
+            c4 = time.perf_counter()
+            for b in act:
                 self.conn.write(b)
+            c5 = time.perf_counter()
             self.stepper.advance(u)
+            c6 = time.perf_counter()
+            self.sim_s += (c1 - c0) + (c6 - c5)
+            self.encode_s += (c2 - c1) + (c4 - c3)
         return np.array(lat), time.monotonic() - t0
 
 
@@ -149,6 +169,14 @@ def main() -> int:
         rt = np.nanpercentile(lat, 50) * 1e3
         print(f"{args.filter} N={args.throughput_particles} lockstep (--speed 0): {n_ok} frames in "
               f"{wall:.2f} s = {n_ok / wall:.0f} frames/s sustained (p50 round trip {rt:.2f} ms)", flush=True)
+        n = len(lat)
+        sim_ms, enc_ms = 1e3 * pilot.sim_s / n, 1e3 * pilot.encode_s / n
+        gcs_ms = 1e3 * pilot.gcs_s / n
+        svc_ms = 1e3 * wall / n - sim_ms - enc_ms - gcs_ms
+        print(f"  per frame (mean wall): simulator {sim_ms:.3f} ms (truth, sensors, autopilot) + its MAVLink "
+              f"encoding {enc_ms:.3f} ms + decoding the replies {gcs_ms:.3f} ms; the rest {svc_ms:.3f} ms = "
+              f"service round trip (UDP both ways, parse, filter, publish, recorder) -> the service alone "
+              f"would sustain {1e3 / svc_ms:.0f} frames/s", flush=True)
     finally:
         svc.stop()
     return 0

@@ -26,6 +26,9 @@ from collections.abc import Callable
 
 from fdir_service.pipeline import Pipeline
 
+DRAIN_BACKLOG = 64
+"""Datagrams fed without stepping a frame after which the recorder's queue is drained anyway."""
+
 
 def open_link(url: str, *, source_system: int = 1, source_component: int = 191):
     """A pymavlink mavutil connection (udpin:, udpout:, tcp:, tcpin:, serial device) for raw I/O."""
@@ -74,6 +77,7 @@ class Daemon:
         self.last_input = time.monotonic()
         self.link_lost_events = 0
         self._trusted_peers: set = set()
+        self._undrained = 0
 
     def stop(self, *_args) -> None:
         self.stop_event.set()
@@ -98,6 +102,7 @@ class Daemon:
                  f"{self.pipeline.scenario.id}; autopilot link {self.master_url}"
                  + (f"; ground stations {', '.join(self.gcs_urls)}" if self.gcs_urls else "")
                  + ("; signing on" if self.pipeline.signed else ""))
+        self.pipeline.defer_observers(True)
         try:
             while not self.stop_event.is_set():
                 now = time.monotonic()
@@ -114,6 +119,9 @@ class Daemon:
                     time.sleep(0.001)
                 if ready:
                     self._drain_master()
+                else:   # idle link: write what the recorder still holds
+                    self.pipeline.drain_observers()
+                    self._undrained = 0
                 now = time.monotonic()
                 if self.pipeline.frames != last_frames:
                     last_frames, last_progress = self.pipeline.frames, now
@@ -122,14 +130,17 @@ class Daemon:
                     self.link_lost_events += 1
                     self.log(f"fdir: link lost: no input for {silent:.1f} s")
                     self._send(b"".join(self.pipeline.set_link_lost(True, silent, time.time_ns())))
+                    self.pipeline.drain_observers()
                 if (self.bytes_in and now - last_progress >= hb_period
                         and now - last_idle_hb >= hb_period):
                     last_idle_hb = now
                     self._send(self.pipeline.heartbeat(time.time_ns()))
+                    self.pipeline.drain_observers()
         finally:
             tail = self.pipeline.close(time.time_ns())
             if tail:
                 self._send(b"".join(tail))
+            self.pipeline.drain_observers()
             if install_signals:
                 for s, h in old.items():
                     signal.signal(s, h)
@@ -145,6 +156,10 @@ class Daemon:
         return 0
 
     def _drain_master(self) -> None:
+        """Read and feed what the autopilot link has. The recorder's queue is drained right after a
+        frame was stepped and its output sent, so the rest of a frame's messages never wait behind
+        the encoding (or the once-a-second chunk compression) of its first ones; input that steps
+        no frame is drained after DRAIN_BACKLOG datagrams or when the link is idle (run loop)."""
         for _ in range(1000):  # bounded: keep heartbeats and signals serviced under a flood
             try:
                 data = self.master.recv(65536)
@@ -161,11 +176,15 @@ class Daemon:
                 self._send(b"".join(self.pipeline.set_link_lost(False, silent, time.time_ns())))
             self.last_input = now
             self.bytes_in += len(data)
-            accepted = self.pipeline.accepted_messages
+            accepted, frames = self.pipeline.accepted_messages, self.pipeline.frames
             out = self.pipeline.feed(data, time.time_ns())
             self._vet_peer(self.pipeline.accepted_messages > accepted)
             if out:
                 self._send(b"".join(out))
+            self._undrained += 1
+            if out or self.pipeline.frames != frames or self._undrained >= DRAIN_BACKLOG:
+                self.pipeline.drain_observers()   # the recorder encodes after the frame went out
+                self._undrained = 0
 
     def _vet_peer(self, accepted: bool) -> None:
         """Keep a udpin link's reply list to senders that delivered accepted input."""

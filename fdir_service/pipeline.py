@@ -70,6 +70,9 @@ OPERATOR_REASONS = ("unsigned", "bad signature", "other system", "command ignore
                     "time jump", "bad crc", "malformed", "out of range", "frozen", "no timestamp")
 """Rejection reasons (substrings) reported by STATUSTEXT; the rest (late, surplus, duplicate,
 unknown message id) are normal on a radio link and only counted and logged."""
+LATENCY_WINDOW = 12_000
+"""Step latencies kept (`Pipeline.latencies`, the last 10 min at 20 Hz)."""
+STATE_LABELS = ("p_d", "u", "w", "theta", "q")
 DUPLICATE_MEMORY = 32
 """Packets remembered per sender to recognise a duplicate (same bytes, same sequence number)."""
 
@@ -146,7 +149,7 @@ class Pipeline:
         self.assembler = FrameAssembler(config, trim_input(self.scenario))
         self.rejected: Counter[str] = Counter()
         self.frames = 0
-        self.latencies: list[float] = []
+        self.latencies: deque[float] = deque(maxlen=LATENCY_WINDOW)
         self._reported_rejections = 0
         self._last_reject_report_us: int | None = None
         self._last_particles_bucket: int | None = None
@@ -169,6 +172,9 @@ class Pipeline:
         self._last_good_state: np.ndarray | None = None
         self._sigma = np.asarray(self.scenario.sensors.filter_sigma(), dtype=float)
         self._rows = [MEASURED_STATE.get(name) for name in self.scenario.sensors.measurements]
+        jump = tuple(getattr(self.health, "max_state_jump", ()) or ())
+        self._max_jump = np.asarray(jump, dtype=float) if len(jump) == 5 else None
+        self._prev_state: np.ndarray | None = None   # last published airframe estimate (5,)
         self.link_lost = False
         self.accepted_messages = 0
         self._emit_metadata()
@@ -194,6 +200,23 @@ class Pipeline:
         for name, data in (("config", cfg), ("versions", versions), ("dialect", dia)):
             for ob in self.observers:
                 ob.on_metadata(name, data)
+
+    # ------------------------------------------------------------------ deferred observers
+    def defer_observers(self, on: bool = True) -> None:
+        """Let observers that can (the Recorder) only queue references during `feed`; the caller
+        sends the returned bytes first and then calls `drain_observers()` (the daemon does), which
+        takes the recorder's encoding off the latency path. Same file content either way."""
+        for ob in self.observers:
+            defer = getattr(ob, "defer", None)
+            if defer is not None:
+                defer(on)
+
+    def drain_observers(self) -> None:
+        """Write what deferred observers queued (before the next `feed`)."""
+        for ob in self.observers:
+            drain = getattr(ob, "drain", None)
+            if drain is not None:
+                drain()
 
     # ------------------------------------------------------------------ helpers
     def _event(self, level: str, text: str, t_ns: int) -> None:
@@ -375,12 +398,18 @@ class Pipeline:
                 keep[j] = abs(y[j] / coef - x0[col]) <= self.health.reinit_gate_sigmas * self._sigma[j]
         return x0, keep
 
-    def _health_problem(self, out: StepOutput) -> str | None:
-        """Why the filter needs re-initialising after this step's output, or None."""
+    def _health_problem(self, out: StepOutput, prev: np.ndarray | None = None) -> str | None:
+        """Why the filter needs re-initialising after this step's output, or None. prev: the
+        previous frame's airframe estimate (5,), for the state-jump check."""
         finite = (np.isfinite(out.x_mean).all() and np.isfinite(out.fault_probability).all()
                   and np.isfinite(out.fault_estimate).all() and np.isfinite(out.n_eff))
         if not finite:
             return "non-finite estimate"
+        if prev is not None and self._max_jump is not None:
+            jump = np.abs(np.asarray(out.x_mean[:5], dtype=float) - prev) > self._max_jump
+            if jump.any():
+                j = int(np.argmax(jump))
+                return f"{STATE_LABELS[j]} jump {out.x_mean[j] - prev[j]:+.3g}/frame"
         n = int(getattr(self.filter, "reinitialisations", 0))
         if n != self._filter_reinits:
             self._filter_reinits = n
@@ -422,20 +451,26 @@ class Pipeline:
             keep = self._reinitialise(frame, "input resumed after a gap", frame.y, msgs, t_ns)
             mask = keep
             y = np.where(mask, frame.y, np.nan)
-        out = self.filter.step(frame.time_s, y, mask.copy(), frame.u.copy())
-        problem = self._health_problem(out)
+        out, problem = self._filter_step(frame, y, mask, t_ns)
+        if out is not None:
+            prev = None if (frame.restart or frame.synthetic) else self._prev_state
+            problem = self._health_problem(out, prev)
         if problem is not None:
             holdoff = (self._last_reinit_us is not None and
                        frame.time_us - self._last_reinit_us < self.health.reinit_holdoff_s * 1e6)
-            if problem == "non-finite estimate" or not holdoff:
+            # a non-finite estimate or a non-physical jump is never published: act on this frame
+            acute = out is None or problem == "non-finite estimate" or " jump " in problem
+            if acute or not holdoff:
                 keep = self._reinitialise(frame, problem, frame.y, msgs, t_ns)
                 y = np.where(keep, frame.y, np.nan)
-                out = self.filter.step(frame.time_s, y, keep.copy(), frame.u.copy())
-                if self._health_problem(out) == "non-finite estimate":
+                out, _ = self._filter_step(frame, y, keep, t_ns)
+                if out is None or self._health_problem(out) == "non-finite estimate":
                     self.publisher.health = dialect.MAV_STATE_CRITICAL
                     return msgs
         elif np.isfinite(out.x_mean[:5]).all():
             self._last_good_state = np.asarray(out.x_mean[:5], dtype=float).copy()
+        x5 = np.asarray(out.x_mean[:5], dtype=float)
+        self._prev_state = x5.copy() if np.isfinite(x5).all() else None
         self.frames += 1
         recovering = (self._last_reinit_us is not None
                       and frame.time_us - self._last_reinit_us < self.health.reinit_holdoff_s * 1e6)
@@ -444,9 +479,7 @@ class Pipeline:
         pub, events = self.publisher.publish(frame, out)
         msgs += pub
         latency = time.perf_counter() - t0
-        self.latencies.append(latency)
-        if len(self.latencies) > 100_000:   # bounded memory on a long flight
-            del self.latencies[:50_000]
+        self.latencies.append(latency)   # a fixed window: constant memory and cost on a long flight
         for level, text in events:
             self._event(level, f"{text} (t={frame.time_s:.2f} s)", t_ns)
         observers = self.observers
@@ -461,6 +494,17 @@ class Pipeline:
                     ob.on_particles(frame.time_s, np.asarray(states), np.asarray(weights), t_ns)
         self._last_frame_us = frame.time_us
         return msgs
+
+    def _filter_step(self, frame: AssembledFrame, y: np.ndarray, mask: np.ndarray, t_ns: int
+                     ) -> tuple[StepOutput | None, str | None]:
+        """filter.step, with an exception from the filter (a numerical failure) turned into a
+        health problem: the service re-initialises instead of crashing."""
+        try:
+            return self.filter.step(frame.time_s, y, mask.copy(), frame.u.copy()), None
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:
+            self._event("error", f"filter step failed at t={frame.time_s:.2f} s: {type(e).__name__}: {e}",
+                        t_ns)
+            return None, f"filter raised {type(e).__name__}"
 
     def _statustext_due(self, reason: str, now_us: int) -> str | None:
         """Rate limit: a STATUSTEXT about `reason` at its first occurrence, then at most once per

@@ -19,11 +19,14 @@ import numpy as np
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.ingest import AssembledFrame
-from fdir_service.mavlink import MAX_FAULTS, dialect
+from fdir_service.mavlink import MAX_FAULTS, dialect, frame_payload
+from fdir_service.mavlink import pack as fast_pack
 from fdir_service.scenario import FaultChannel
 from fdir_service.service_config import PublishConfig
 
 _EPS_US = 1  # frame-time comparisons in us
+_NVF = dialect.MAVLink_named_value_float_message
+_EST = dialect.MAVLink_fdir_estimate_message
 
 
 @dataclass
@@ -57,7 +60,8 @@ class Publisher:
         self.frame_seq = 0
         self._last_bucket: dict[str, int] = {}
         self.health = dialect.MAV_STATE_STANDBY
-        self.names = {f.id: (f"f_{f.id}", f"pf_{f.id}", f"pfa_{f.id}", f"pmd_{f.id}") for f in faults}
+        self.names = {f.id: (f"f_{f.id}".encode(), f"pf_{f.id}".encode(), f"pfa_{f.id}".encode(),
+                             f"pmd_{f.id}".encode()) for f in faults}
 
     # ------------------------------------------------------------------ rates
     def _due(self, what: str, period_s: float, time_us: int) -> bool:
@@ -69,7 +73,14 @@ class Publisher:
         return True
 
     def _pack(self, msg) -> bytes:
-        return bytes(msg.pack(self.mav))
+        return fast_pack(msg, self.mav)
+
+    def _frame(self, cls, payload: bytes) -> bytes | None:
+        return frame_payload(self.mav, cls.id, cls.crc_extra, payload)
+
+    def named_value_float(self, time_boot_ms: int, name: bytes, value: float) -> bytes:
+        b = self._frame(_NVF, _NVF.unpacker.pack(time_boot_ms, value, name))
+        return b if b is not None else self._pack(_NVF(time_boot_ms, name, value))
 
     # ------------------------------------------------------------------ messages
     def heartbeat(self, status: int | None = None) -> bytes:
@@ -115,7 +126,7 @@ class Publisher:
         if self._due("hb", self.config.heartbeat_period_s, frame.time_us):
             msgs.append(self.heartbeat())
         if self._due("est", 1.0 / self.config.estimate_rate_hz, frame.time_us):
-            msgs.append(self._pack(self._estimate_message(frame, out, gap)))
+            msgs.append(self._estimate_bytes(frame, out, gap))
         if self._due("nvf", 1.0 / self.config.named_value_rate_hz, frame.time_us):
             for i, f in enumerate(self.faults):
                 nf_, npf, npfa, npmd = self.names[f.id]
@@ -123,25 +134,31 @@ class Publisher:
                 if self.adaptive and out.pfa is not None and out.pmd is not None:
                     vals += [(npfa, out.pfa[i]), (npmd, out.pmd[i])]
                 for name, v in vals:
-                    msgs.append(self._pack(dialect.MAVLink_named_value_float_message(
-                        t_ms, name.encode(), float(v))))
+                    msgs.append(self.named_value_float(t_ms, name, float(v)))
         for _i, declared, text in changes:
             sev = dialect.MAV_SEVERITY_WARNING if declared else dialect.MAV_SEVERITY_NOTICE
             msgs.append(self.statustext(sev, text))
             events.append(("warning" if declared else "info", text))
         return msgs, events
 
-    def _estimate_message(self, frame: AssembledFrame, out: StepOutput, gap: bool):
+    def _estimate_fields(self, frame: AssembledFrame, out: StepOutput, gap: bool) -> tuple:
+        """FDIR_ESTIMATE's fields in declaration order (time_boot_ms, frame_seq, fault_count,
+        declared, flags, mask, state[5], state_std[5], fault[8], fault_std[8], p_fault[8], pfa[8],
+        pmd[8], n_eff), as Python numbers and lists (NaN where a field has no value)."""
         nf = len(self.faults)
-        n = out.x_mean.size
+        x = np.asarray(out.x_mean, dtype=float)
+        n = x.size
+        nan8 = [math.nan] * MAX_FAULTS
 
-        def pad(v, fill=math.nan) -> list[float]:
-            a = [fill] * MAX_FAULTS
-            if v is not None:
-                a[:nf] = [float(x) for x in np.asarray(v)[:nf]]
-            return a
+        def pad(v) -> list[float]:
+            if v is None:
+                return nan8
+            return np.asarray(v, dtype=float).ravel()[:nf].tolist() + nan8[nf:]
 
-        std = np.sqrt(np.clip(np.diag(out.x_cov), 0.0, None)) if out.x_cov is not None else np.full(n, np.nan)
+        if out.x_cov is not None:
+            std = np.sqrt(np.clip(np.diag(out.x_cov), 0.0, None))
+        else:
+            std = np.full(n, np.nan)
         flags = 0
         if out.resampled:
             flags |= dialect.FDIR_ESTIMATE_FLAGS_RESAMPLED
@@ -152,9 +169,22 @@ class Publisher:
         if gap or frame.synthetic:
             flags |= dialect.FDIR_ESTIMATE_FLAGS_GAP
         mask_bits = sum(1 << j for j, ok in enumerate(frame.mask[:8]) if ok)
-        fault_std = pad(std[5:5 + nf]) if std.size >= 5 + nf else pad(None)
-        return dialect.MAVLink_fdir_estimate_message(
-            frame.time_boot_ms, self.frame_seq & 0xFFFFFFFF, nf, self.declared_mask, flags, mask_bits,
-            [float(v) for v in out.x_mean[:5]], [float(v) for v in std[:5]],
-            pad(out.fault_estimate), fault_std, pad(out.fault_probability),
-            pad(out.pfa), pad(out.pmd), float(out.n_eff))
+        fault_std = pad(std[5:5 + nf]) if std.size >= 5 + nf else nan8
+        return (frame.time_boot_ms, self.frame_seq & 0xFFFFFFFF, nf, self.declared_mask, flags, mask_bits,
+                x[:5].tolist(), std[:5].tolist(), pad(out.fault_estimate), fault_std,
+                pad(out.fault_probability), pad(out.pfa), pad(out.pmd), float(out.n_eff))
+
+    def _estimate_message(self, frame: AssembledFrame, out: StepOutput, gap: bool):
+        return _EST(*self._estimate_fields(frame, out, gap))
+
+    def _estimate_bytes(self, frame: AssembledFrame, out: StepOutput, gap: bool) -> bytes:
+        """FDIR_ESTIMATE encoded once, straight from the fields (same bytes as pymavlink's pack)."""
+        t_ms, seq, nf, decl, flags, mask, st, sd, f, fs, pf, pfa, pmd, n_eff = self._estimate_fields(
+            frame, out, gap)
+        b = None
+        if not self.mav.signing.sign_outgoing:
+            b = self._frame(_EST, _EST.unpacker.pack(t_ms, seq, *st, *sd, *f, *fs, *pf, *pfa, *pmd, n_eff,
+                                                     nf, decl, flags, mask))
+        if b is None:
+            b = self._pack(_EST(t_ms, seq, nf, decl, flags, mask, st, sd, f, fs, pf, pfa, pmd, n_eff))
+        return b

@@ -115,6 +115,10 @@ class HealthConfig:
     reinit_gate_sigmas: float = 20.0
     reinit_holdoff_s: float = 1.0
     statustext_interval_s: float = 10.0
+    max_state_jump: tuple[float, ...] = (50.0, 20.0, 20.0, 1.0, 5.0)
+    """Largest change of the airframe estimate [p_d m, u m/s, w m/s, theta rad, q rad/s] from one
+    frame to the next that is still physical (far beyond any correction on healthy data); a step
+    beyond it re-initialises the filter on that frame, before anything is published. () = off."""
 
 
 @dataclass(frozen=True)
@@ -409,6 +413,12 @@ def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: st
                                 expect="a time >= 0 (s)"),
         statustext_interval_s=hs.get("statustext_interval_s", float, 10.0, check=lambda v: v >= 0,
                                      expect="a time >= 0 (s)"),
+        max_state_jump=tuple(float(v) for v in hs.get(
+            "max_state_jump", list, [50.0, 20.0, 20.0, 1.0, 5.0],
+            check=lambda v: len(v) in (0, 5) and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+                for x in v),
+            expect="[] (off) or 5 positive numbers [p_d m, u m/s, w m/s, theta rad, q rad/s]")),
     )
     hs.finish()
 

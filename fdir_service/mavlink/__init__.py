@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 from fdir_service.mavlink.generated import fdir as dialect
@@ -43,3 +44,46 @@ def new_mavlink(src_system: int, src_component: int, *, key: bytes | None = None
         mav.signing.sign_outgoing = True
         mav.signing.allow_unsigned_callback = (lambda _mav, _msgid: True) if allow_unsigned else None
     return mav
+
+
+_HEADER = struct.Struct("<BBBBBBBHB")   # MAVLink 2: STX, len, incompat, compat, seq, sys, comp, msgid
+_CRC = struct.Struct("<H")
+try:  # pymavlink's generated code uses the same function when fastcrc is installed
+    from fastcrc.crc16 import mcrf4xx as _mcrf4xx
+except ImportError:  # pragma: no cover
+    _mcrf4xx = None
+
+
+def frame_payload(mav: dialect.MAVLink, msg_id: int, crc_extra: int, payload: bytes) -> bytes | None:
+    """The MAVLink 2 frame pymavlink's `pack` builds around an already packed payload (same
+    bytes: trailing-zero truncation, header with `mav.seq` and ids, CRC with crc_extra), without
+    its per-message header objects and byte arrays. None when `mav` signs its output (then use
+    pymavlink, which signs) or fastcrc is missing."""
+    if _mcrf4xx is None or mav.signing.sign_outgoing:
+        return None
+    p = payload.rstrip(b"\0") or payload[:1]
+    body = _HEADER.pack(253, len(p), 0, 0, mav.seq, mav.srcSystem, mav.srcComponent,
+                        msg_id & 0xFFFF, msg_id >> 16) + p
+    return body + _CRC.pack(_mcrf4xx(body[1:] + bytes((crc_extra,)), 0xFFFF))
+
+
+def pack(msg: dialect.MAVLink_message, mav: dialect.MAVLink) -> bytes:
+    """`bytes(msg.pack(mav))`, cheaper for unsigned output: the message's own payload packing, then
+    `frame_payload` (the message object's `_header` / `_msgbuf` are not filled in)."""
+    if _mcrf4xx is None or mav.signing.sign_outgoing:
+        return bytes(msg.pack(mav))
+    got: list[bytes] = []
+
+    def capture(_mav, _crc_extra, payload, force_mavlink1=False):
+        got.append(payload)
+        return b""
+
+    msg._pack = capture          # the generated pack() hands its payload to self._pack
+    try:
+        msg.pack(mav)
+    finally:
+        del msg._pack
+    cls = type(msg)   # class attributes: STATUSTEXT has a field named `id`
+    out = frame_payload(mav, cls.id, cls.crc_extra, got[0])
+    assert out is not None
+    return out

@@ -9,6 +9,10 @@ Topics (all JSON with a named jsonschema, see `fdir_service.recording.schemas`):
 Metadata records: "config", "versions", "dialect" (as the pipeline hands them over), repeated in
 every segment. The log time of every message is the pipeline's t_ns (receive time).
 
+Deferred mode (`defer()`, what `fdir run` uses): the observer calls queue cheap references (the
+estimate as its flat dict, particle copies) and `drain()` encodes and writes them after the frame's
+output has been sent; the file content is the same as in the default eager mode.
+
 Crash safety: chunks are ZSTD-compressed and closed at least once a second of log time, so a
 SIGKILL loses at most the last second; SIGTERM/SIGINT must call `close()` (the daemon does) to
 write the summary. Rotation: a new segment `<stem>.001.mcap`, `<stem>.002.mcap`, ... starts when
@@ -78,7 +82,31 @@ class Recorder:
         self._segment_start_ns: int | None = None
         self._file: JsonMcapFile | None = None
         self.closed = False
+        self.deferred = False
+        self._queue: list[tuple[Callable[..., None], tuple[Any, ...]]] = []
         self._open_segment()
+
+    # ------------------------------------------------------------------ deferral
+    def defer(self, on: bool = True) -> None:
+        """Deferred mode (the daemon's): the PipelineObserver calls only queue cheap references
+        (bytes, the StepOutput, the message object) and `drain()` encodes and writes them, in call
+        order, after the frame's output has been sent. The file content is the same either way."""
+        with self._lock:
+            self.deferred = on
+            if not on:
+                self._drain_locked()
+
+    def drain(self) -> None:
+        """Encode and write everything queued in deferred mode (call before the next frame is fed:
+        the queued StepOutput is referenced, not copied)."""
+        if self._queue:
+            with self._lock:
+                self._drain_locked()
+
+    def _drain_locked(self) -> None:
+        q, self._queue = self._queue, []
+        for fn, args in q:
+            fn(*args)
 
     # ------------------------------------------------------------------ segments
     def _open_segment(self) -> None:
@@ -128,6 +156,12 @@ class Recorder:
 
     def on_raw(self, direction: str, data: bytes, t_ns: int) -> None:
         """Bytes exactly as read ("in") from or sent ("out") to the autopilot link."""
+        if self.deferred:
+            self._queue.append((self._on_raw_now, (direction, data, t_ns)))
+            return
+        self._on_raw_now(direction, data, t_ns)
+
+    def _on_raw_now(self, direction: str, data: bytes, t_ns: int) -> None:
         if direction not in ("in", "out"):
             raise ValueError(f"raw direction must be 'in' or 'out', got {direction!r}")
         if not data:
@@ -137,11 +171,25 @@ class Recorder:
 
     def on_message(self, msg: Any, t_ns: int) -> None:
         """A decoded, accepted input message on `/mavlink/<sys>/<comp>/<MSG>`."""
+        if self.deferred:
+            self._queue.append((self._on_message_now, (msg, t_ns)))
+            return
+        self._on_message_now(msg, t_ns)
+
+    def _on_message_now(self, msg: Any, t_ns: int) -> None:
         cls = type(msg)
         self._write(S.mavlink_topic(msg), lambda: S.mavlink_schema(cls), S.mavlink_message_json(msg), t_ns)
 
     def on_estimate(self, frame_time_s: float, out: StepOutput, latency_s: float, t_ns: int) -> None:
         """One filter step, flattened (see `schemas.estimate_field_names`)."""
+        if self.deferred:   # snapshot the numbers now (~15 us): the filter may reuse its arrays
+            obj = S.estimate_json(frame_time_s, out, latency_s)
+            self._queue.append((self._on_estimate_now, (frame_time_s, out, latency_s, t_ns, obj)))
+            return
+        self._on_estimate_now(frame_time_s, out, latency_s, t_ns)
+
+    def _on_estimate_now(self, frame_time_s: float, out: StepOutput, latency_s: float, t_ns: int,
+                         obj: dict[str, Any] | None = None) -> None:
         n = int(np.asarray(out.x_mean).size)
         layout = (tuple(out.fault_ids), n, S.is_adaptive(out))
         with self._lock:
@@ -154,14 +202,30 @@ class Recorder:
         def schema() -> dict[str, Any]:
             return S.estimate_schema(layout[0], n, adaptive=layout[2])
 
-        self._write(ESTIMATE_TOPIC, schema, S.estimate_json(frame_time_s, out, latency_s), t_ns)
+        if obj is None:
+            obj = S.estimate_json(frame_time_s, out, latency_s)
+        self._write(ESTIMATE_TOPIC, schema, obj, t_ns)
 
     def on_event(self, level: str, text: str, t_ns: int) -> None:
         """An event on the `foxglove.Log` topic (level "info" | "warning" | "error")."""
+        if self.deferred:
+            self._queue.append((self._on_event_now, (level, text, t_ns)))
+            return
+        self._on_event_now(level, text, t_ns)
+
+    def _on_event_now(self, level: str, text: str, t_ns: int) -> None:
         self._write(LOG_TOPIC, S.FOXGLOVE_LOG_SCHEMA, S.log_json(level, text, t_ns), t_ns)
 
     def on_particles(self, frame_time_s: float, states: np.ndarray, weights: np.ndarray, t_ns: int) -> None:
         """The top particles (k, n) and weights (k,) of one frame."""
+        if self.deferred:
+            states, weights = np.array(states, dtype=float), np.array(weights, dtype=float)   # copies
+            self._queue.append((self._on_particles_now, (frame_time_s, states, weights, t_ns)))
+            return
+        self._on_particles_now(frame_time_s, states, weights, t_ns)
+
+    def _on_particles_now(self, frame_time_s: float, states: np.ndarray, weights: np.ndarray,
+                          t_ns: int) -> None:
         states = np.atleast_2d(np.asarray(states, dtype=float))
         names = self._state_names or [f"s{i}" for i in range(states.shape[1])]
         if len(names) != states.shape[1]:
@@ -173,6 +237,7 @@ class Recorder:
     def flush(self) -> None:
         """Close the chunk in progress now (the recorder also does this every second of log time)."""
         with self._lock:
+            self._drain_locked()
             if not self.closed and self._file is not None:
                 self._file.flush()
 
@@ -181,6 +246,7 @@ class Recorder:
         with self._lock:
             if self.closed:
                 return
+            self._drain_locked()
             self.closed = True
             if self._file is not None:
                 self._file.close()

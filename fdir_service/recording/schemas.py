@@ -105,7 +105,20 @@ def _json_safe(value: Any) -> Any:
 
 def mavlink_message_json(msg: Any) -> dict[str, Any]:
     """A decoded pymavlink message as the JSON object of its `mavlink.<MSG>` schema."""
-    d = {k: _json_safe(v) for k, v in msg.to_dict().items()}
+    # = {k: _json_safe(v) for k, v in msg.to_dict().items()}, without to_dict's per-field calls
+    d: dict[str, Any] = {"mavpackettype": msg.get_type()}
+    isfinite = math.isfinite
+    for a in msg._fieldnames:
+        v = getattr(msg, a)
+        t = type(v)
+        if t is float:
+            d[a] = v if isfinite(v) else None
+        elif t is int:
+            d[a] = v
+        elif t is bytes:
+            d[a] = v.decode(errors="backslashreplace").rstrip("\x00")
+        else:
+            d[a] = _json_safe(v)
     d["_sys"] = int(msg.get_srcSystem())
     d["_comp"] = int(msg.get_srcComponent())
     return d
@@ -196,33 +209,50 @@ def _num(v: Any) -> float | None:
     return f if math.isfinite(f) else None
 
 
+_ESTIMATE_KEYS: dict[tuple[tuple[str, ...], int, bool], list[str]] = {}
+
+
+def _estimate_keys(fault_ids: tuple[str, ...], n: int, adaptive: bool) -> list[str]:
+    """The numeric keys of `estimate_json` after frame_time_s, in record order (cached per layout)."""
+    key = (fault_ids, n, adaptive)
+    keys = _ESTIMATE_KEYS.get(key)
+    if keys is None:
+        states = state_names(fault_ids, n)
+        keys = [f"x_{s}" for s in states] + [f"var_{s}" for s in states]
+        keys += [f"f_{f}" for f in fault_ids] + [f"pf_{f}" for f in fault_ids]
+        if adaptive:
+            keys += [f"pfa_{f}" for f in fault_ids] + [f"pmd_{f}" for f in fault_ids]
+            keys += [f"pi{i}{j}_{f}" for i, j in ((0, 0), (0, 1), (1, 0), (1, 1)) for f in fault_ids]
+        keys.append("n_eff")
+        _ESTIMATE_KEYS[key] = keys
+    return keys
+
+
 def estimate_json(frame_time_s: float, out: StepOutput, latency_s: float) -> dict[str, Any]:
-    """A StepOutput as the flat `fdir.Estimate` object (floats round-trip exactly through JSON)."""
+    """A StepOutput as the flat `fdir.Estimate` object (floats round-trip exactly through JSON;
+    NaN / inf -> null). Built from one concatenated array (`tolist` gives the same Python floats
+    as `float(v)` element by element)."""
     fault_ids = tuple(out.fault_ids)
-    x = np.asarray(out.x_mean, dtype=float)
-    var = np.diag(np.asarray(out.x_cov, dtype=float))
-    states = state_names(fault_ids, x.size)
+    x = np.asarray(out.x_mean, dtype=float).ravel()
+    nf = len(fault_ids)
+    parts = [x, np.diag(np.asarray(out.x_cov, dtype=float)),
+             np.asarray(out.fault_estimate, dtype=float).ravel()[:nf],
+             np.asarray(out.fault_probability, dtype=float).ravel()[:nf]]
+    adaptive = is_adaptive(out)
+    if adaptive:
+        parts += [np.asarray(out.pfa, dtype=float).ravel()[:nf],
+                  np.asarray(out.pmd, dtype=float).ravel()[:nf],
+                  np.asarray(out.transition, dtype=float).reshape(nf, 2, 2).transpose(1, 2, 0).ravel()]
+    parts.append(np.asarray([out.n_eff], dtype=float))
+    v = np.concatenate(parts)
+    keys = _estimate_keys(fault_ids, x.size, adaptive)
+    if len(keys) != v.size:
+        raise ValueError(f"estimate layout: {v.size} values for {len(keys)} fields")
+    vals = v.tolist()
+    if not np.isfinite(v).all():
+        vals = [f if math.isfinite(f) else None for f in vals]
     d: dict[str, Any] = {"frame_time_s": float(frame_time_s)}
-    for s, v in zip(states, x, strict=True):
-        d[f"x_{s}"] = _num(v)
-    for s, v in zip(states, var, strict=True):
-        d[f"var_{s}"] = _num(v)
-    for f, v in zip(fault_ids, np.asarray(out.fault_estimate, dtype=float), strict=True):
-        d[f"f_{f}"] = _num(v)
-    for f, v in zip(fault_ids, np.asarray(out.fault_probability, dtype=float), strict=True):
-        d[f"pf_{f}"] = _num(v)
-    if is_adaptive(out):
-        pfa = np.asarray(out.pfa, dtype=float)
-        pmd = np.asarray(out.pmd, dtype=float)
-        pi = np.asarray(out.transition, dtype=float).reshape(len(fault_ids), 2, 2)
-        for k, f in enumerate(fault_ids):
-            d[f"pfa_{f}"] = _num(pfa[k])
-        for k, f in enumerate(fault_ids):
-            d[f"pmd_{f}"] = _num(pmd[k])
-        for i, j in ((0, 0), (0, 1), (1, 0), (1, 1)):
-            for k, f in enumerate(fault_ids):
-                d[f"pi{i}{j}_{f}"] = _num(pi[k, i, j])
-    d["n_eff"] = _num(out.n_eff)
+    d.update(zip(keys, vals, strict=True))
     d["resampled"] = bool(out.resampled)
     d["latency_s"] = float(latency_s)
     return d

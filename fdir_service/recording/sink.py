@@ -23,6 +23,8 @@ from fdir_service.recording.schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, sc
 PROFILE = ""  # plain MCAP (JSON messages with jsonschema schemas)
 LIBRARY = f"fdir-service/{__version__}"
 DEFAULT_CHUNK_BYTES = 512 * 1024
+_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False)
+"""= json.dumps(obj, separators=(",", ":"), allow_nan=False), without building an encoder per call."""
 
 
 class JsonMcapFile:
@@ -74,7 +76,7 @@ class JsonMcapFile:
         """Append one JSON message to a registered topic at log time t_ns (ns)."""
         t_ns = max(int(t_ns), 0)
         self.tick(t_ns)  # close the chunk first, so a chunk holds [t_flush, t_flush + 1 s)
-        data = json.dumps(obj, separators=(",", ":"), allow_nan=False).encode()
+        data = _ENCODER.encode(obj).encode()
         self._writer.add_message(channel_id=self._channels[topic], log_time=t_ns, data=data,
                                  publish_time=t_ns, sequence=self.message_count & 0xFFFFFFFF)
         self.message_count += 1
