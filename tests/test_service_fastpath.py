@@ -48,11 +48,15 @@ def test_publisher_fast_framing_equals_pymavlink_pack():
                 frame = AssembledFrame(i, 50_000 * i + 7, np.zeros(6), mask, np.zeros(2),
                                        synthetic=i % 11 == 0, stale=("baro_alt",) if i % 4 == 0 else ())
                 pub.frame_seq += 1
+                seq_before = mav.seq
                 got = pub._estimate_bytes(frame, out, gap=False)
+                assert mav.seq == (seq_before + 1) % 256   # every frame out takes the next sequence number
+                ref.seq = seq_before
                 ref.signing.timestamp = mav.signing.timestamp - (1 if key else 0)
                 want = bytes(pub._estimate_message(frame, out, False).pack(ref))
                 assert got == want, i
                 v = float(out.fault_estimate[0])
+                ref.seq = mav.seq
                 got = pub.named_value_float(frame.time_boot_ms, b"pf_gnss", v)
                 ref.signing.timestamp = mav.signing.timestamp - (1 if key else 0)
                 want = bytes(dialect.MAVLink_named_value_float_message(frame.time_boot_ms, b"pf_gnss",
@@ -124,3 +128,5 @@ def test_generic_fast_pack_equals_pymavlink_pack():
         a.seq = b.seq = 42
         for make in msgs:
             assert pack(make(), a) == bytes(make().pack(b))
+            assert a.seq == (b.seq + 1) % 256     # pack takes the next sequence number, as send() does
+            b.seq = a.seq

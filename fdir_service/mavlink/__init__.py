@@ -64,6 +64,7 @@ def frame_payload(mav: dialect.MAVLink, msg_id: int, crc_extra: int, payload: by
     p = payload.rstrip(b"\0") or payload[:1]
     body = _HEADER.pack(253, len(p), 0, 0, mav.seq, mav.srcSystem, mav.srcComponent,
                         msg_id & 0xFFFF, msg_id >> 16) + p
+    mav.seq = (mav.seq + 1) % 256
     return body + _CRC.pack(_mcrf4xx(body[1:] + bytes((crc_extra,)), 0xFFFF))
 
 
@@ -71,7 +72,9 @@ def pack(msg: dialect.MAVLink_message, mav: dialect.MAVLink) -> bytes:
     """`bytes(msg.pack(mav))`, cheaper for unsigned output: the message's own payload packing, then
     `frame_payload` (the message object's `_header` / `_msgbuf` are not filled in)."""
     if _mcrf4xx is None or mav.signing.sign_outgoing:
-        return bytes(msg.pack(mav))
+        frame = bytes(msg.pack(mav))
+        mav.seq = (mav.seq + 1) % 256   # as MAVLink.send does: every frame out gets the next seq
+        return frame
     got: list[bytes] = []
 
     def capture(_mav, _crc_extra, payload, force_mavlink1=False):
