@@ -91,6 +91,7 @@ def _reduced_filter(name: str, sc, keep: np.ndarray, seed: int) -> ParticleFilte
     layout = FaultLayout(full.layout.fault_ids, full.layout.kinds, full.layout.targets, meas.names)
     f = build_particle_filter(name, sc, np.random.default_rng(seed), particles=400)
     f.meas = type(meas)(meas.names, meas.H.copy(), meas.sigma.copy())
+    f.layout = layout    # sensor rows of the reduced model ("prior" sentinel weighting reads them)
     if f.amplitude is not None:
         f.amplitude = AmplitudePredictor(layout, f.meas, full.amplitude.B_actuator,
                                          np.sqrt(np.diag(full.amplitude.Qz)))

@@ -101,6 +101,8 @@ def test_scenario_keys_validated():
         parse_scenario(doc)
     doc = _doc("ch5a")                                # deg in the file, rad once loaded
     doc["faults"][0]["amplitude_max"] = 90.0
+    for key in ("sentinel_weighting", "jitter"):        # ch5a sets both: check the defaults
+        doc["estimator"].pop(key, None)
     sc = parse_scenario(doc)
     assert sc.faults[0].amplitude_max == pytest.approx(np.pi / 2)
     assert sc.estimator.sentinel_weighting == "thesis" and sc.estimator.jitter == "global"
