@@ -11,6 +11,25 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg.lapack import dpotrf, dtrtri
 
+_FLOOR: dict[int, tuple[np.ndarray, float]] = {}
+"""id(R) -> (R, min diag R): R is a measurement model's constant matrix (cached by identity)."""
+
+
+def _diag_floor(R: np.ndarray) -> float:
+    hit = _FLOOR.get(id(R))
+    if hit is not None and hit[0] is R:
+        return hit[1]
+    floor = float(np.min(np.diag(R))) if R.size else 0.0
+    if len(_FLOOR) > 256:
+        _FLOOR.clear()
+    _FLOOR[id(R)] = (R, floor)
+    return floor
+
+
+def _inv(S: np.ndarray) -> np.ndarray:
+    """Inverse of a float64 (m, m) matrix (public numpy API; raises LinAlgError if singular)."""
+    return np.linalg.inv(S)
+
 
 def weighted_mean_cov(X: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Weighted mean (n,) and covariance (n, n) of a state-major cloud X (n, N), weights w (N,)."""
@@ -51,12 +70,12 @@ def _spd_inverse(S: np.ndarray, R: np.ndarray, fallback: bool = True) -> np.ndar
         return np.diag(1.0 / np.where(d > 0, d, 1.0))
     if not np.isfinite(S).all():
         return None
-    floor = float(np.min(np.diag(R))) if R.size else 0.0
-    tr = float(np.trace(S))
+    floor = _diag_floor(R)
+    tr = float(S.trace())
     if floor > 0 and tr < 1e10 * floor:
         # S >= R, so cond(S) <= trace(S) / min R < 1e10: the plain inverse is accurate (and the
         # cheapest call); symmetrised against round-off
-        inv = np.linalg.inv(S)
+        inv = _inv(S) if S.dtype == np.float64 else np.linalg.inv(S)
         inv += inv.T
         inv *= 0.5
         return inv

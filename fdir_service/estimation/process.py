@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import expm
 
-from fdir_service.airframe.dynamics import derivatives_rows
+from fdir_service.airframe.dynamics import derivatives_rows, derivatives_rows_into
 from fdir_service.airframe.linearize import LinearModel, jacobians
 from fdir_service.airframe.params import AirframeParams
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
@@ -85,6 +85,7 @@ class NonlinearProcess:
         E = expm(M)
         self.Phi = E[:5, 5:]                          # (5, 5)
         self.B_actuator = self.Phi @ Bc @ self.G      # (5, nf) one-frame response to each fault entry
+        self._scratch = np.empty((12, 0))             # derivatives_rows_into's work rows (12, N)
 
     def _inputs(self, X: np.ndarray, u: np.ndarray) -> tuple:
         """delta_e, delta_t seen by each particle (scalars or (N,) rows): u + G f."""
@@ -98,8 +99,16 @@ class NonlinearProcess:
         return eff[0], eff[1]
 
     def _rhs(self, Z: np.ndarray, de, dtl) -> np.ndarray:
-        d = derivatives_rows(Z[1], Z[2], Z[3], Z[4], de, dtl, self.params)
         out = np.empty(Z.shape)
+        N = Z.shape[1]
+        if Z.dtype == np.float64 and all(type(a) is float or getattr(a, "shape", None) in ((), (N,))
+                                         for a in (de, dtl)):
+            # same arithmetic as derivatives_rows, without its temporaries (bit-identical)
+            if self._scratch.shape[1] != N:
+                self._scratch = np.empty((12, N))
+            return derivatives_rows_into(out, self._scratch, Z[1], Z[2], Z[3], Z[4], de, dtl,
+                                         self.params)
+        d = derivatives_rows(Z[1], Z[2], Z[3], Z[4], de, dtl, self.params)
         for i, r in enumerate(d):
             out[i] = r
         return out
@@ -113,7 +122,10 @@ class NonlinearProcess:
         Z = X[:N_AIRFRAME]
         h = self.dt
         if self.integrator == "expeuler":
-            Zn = Z + self.Phi @ self._rhs(Z, de, dtl)
+            out = np.empty_like(X)
+            np.add(Z, self.Phi @ self._rhs(Z, de, dtl), out=out[:N_AIRFRAME])
+            out[N_AIRFRAME:] = X[N_AIRFRAME:]
+            return out[:, 0] if one else out
         elif self.integrator == "euler":
             Zn = Z + h * self._rhs(Z, de, dtl)
         elif self.integrator == "heun":

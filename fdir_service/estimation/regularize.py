@@ -130,7 +130,9 @@ def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, i
         min_eff = 2.0 * n
     eps = epanechnikov(rng, n, N)
     P_glob = None
-    for g in np.unique(code_new):
+    # the patterns present after resampling, ascending (= np.unique(code_new), ~10x cheaper)
+    groups = np.flatnonzero(np.bincount(code_new)) if nf <= 16 else np.unique(code_new)
+    for g in groups:
         sel_prev = code_prev == g
         wg = w_prev[sel_prev]
         W = wg.sum()
@@ -161,5 +163,8 @@ def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, i
                 if P[na + j, na + j] < fault_var_floor[j]:
                     P[na + j, na + j] = fault_var_floor[j]
         D = covariance_factor(P)
-        X[:, cols] += (h * D) @ eps[:, cols]
+        if groups.size == 1:      # one pattern: cols is every column (same product, no gather)
+            X += (h * D) @ eps
+        else:
+            X[:, cols] += (h * D) @ eps[:, cols]
     return X
