@@ -80,96 +80,25 @@ def derivatives_rows(ub, wb, th, q, de, dt, p: AirframeParams):
 
     Same equations as `derivatives` (agrees to ~1e-15 relative), arranged for speed: cos/sin of
     alpha as u/Va, w/Va; the stall blend with one exponential (e_minus e_plus = e^{2 M alpha0}).
-    Arguments broadcast together; returns (p_d', u', w', theta', q') (theta' is q itself).
+    Arguments broadcast together; returns (p_d', u', w', theta', q') with their common shape
+    (np.float64 scalars for scalar arguments). The arithmetic is `derivatives_rows_into`'s.
     """
-    k = _consts(p)
     shape = np.broadcast_shapes(np.shape(ub), np.shape(wb), np.shape(th), np.shape(q),
                                 np.shape(de), np.shape(dt))
-    scalar = shape == ()
-    if scalar or np.shape(ub) != shape or np.shape(wb) != shape:
-        # the in-place arithmetic below needs ub, wb at the full (at least 1-d) shape
-        full = shape or (1,)
-        ub = np.broadcast_to(np.asarray(ub, dtype=float), full)
-        wb = np.broadcast_to(np.asarray(wb, dtype=float), full)
-        if scalar:
-            rows = derivatives_rows(ub, wb, np.reshape(th, 1), np.reshape(q, 1), np.reshape(de, 1),
-                                    np.reshape(dt, 1), p)
-            return tuple(np.float64(r[0]) for r in rows)
-    va2 = ub * ub
-    va2 += wb * wb
-    va = np.sqrt(va2)
-    inv_va = np.maximum(va, 1e-3)
-    np.divide(1.0, inv_va, out=inv_va)
-    alpha = np.arctan2(wb, ub)
-    ca = ub * inv_va
-    sa = wb * inv_va
-    if np.min(va) < 1e-3:  # below 1 mm/s: exact cos/sin of atan2 (atan2(0, 0) = 0)
-        ca = np.where(va < 1e-3, np.cos(alpha), ca)
-        sa = np.where(va < 1e-3, np.sin(alpha), sa)
-    # Stall blend sigma(alpha) with e_minus e_plus = e^{2 M alpha0}; alpha in [-pi, pi] keeps the
-    # exponent within [-140, 190], so no clipping is needed. In-place operations from here on
-    # (fewer temporaries: ~15 % faster at N = 1000).
-    e_minus = alpha - p.alpha0
-    e_minus *= -p.M
-    np.exp(e_minus, out=e_minus)
-    s1 = k.exp_2m_a0 / e_minus
-    s1 += e_minus
-    s1 += 1.0
-    sigma = s1 + k.exp_2m_a0
-    np.divide(s1, sigma, out=sigma)
-    cl_lin = alpha * p.C_La
-    cl_lin += p.C_L0
-    # flat-plate lift 2 sign(a) sin^2(a) cos(a) = 2 sin(a) |sin(a)| cos(a) for a in [-pi, pi]
-    cl = np.abs(sa)
-    cl *= sa
-    cl *= ca
-    cl *= 2.0
-    cl -= cl_lin
-    cl *= sigma
-    cl += cl_lin
-    cd = cl_lin * cl_lin
-    cd *= k.cd_k
-    cd += p.C_Dp
-    qc = q * inv_va
-    qc *= k.c2
-    # Body-axis forces per unit mass (SPEC section 2), grouped by lift and drag; zero
-    # coefficients (C_Lq, C_Dq, C_Dde of the Aerosonde) cost nothing.
-    lift = cl
-    if p.C_Lq:
-        lift = lift + p.C_Lq * qc
-    if p.C_Lde:
-        lift = lift + p.C_Lde * de
-    drag = cd
-    if p.C_Dq:
-        drag = drag + p.C_Dq * qc
-    if p.C_Dde:
-        drag = drag + p.C_Dde * de
-    qbar_m = va2 * k.qbar_m
-    fx = lift * sa
-    fx -= drag * ca
-    fx *= qbar_m
-    fz = drag * sa
-    fz += lift * ca
-    fz *= qbar_m
-    sth = np.sin(th)
-    cth = np.cos(th)
-    d_pd = cth * wb
-    d_pd -= sth * ub
-    d_u = va2 * (-k.thrust_k)
-    d_u += k.thrust_k * k.kmotor2 * dt * dt
-    d_u -= p.g * sth
-    d_u += fx
-    d_u -= q * wb
-    d_w = q * ub
-    d_w += p.g * cth
-    d_w -= fz
-    mom = alpha * p.C_ma
-    mom += p.C_m0
-    mom += p.C_mq * qc
-    mom += p.C_mde * de
-    d_q = va2 * k.mom_k
-    d_q *= mom
-    return d_pd, d_u, d_w, q, d_q
+    full = shape or (1,)
+
+    def row(v):
+        return np.broadcast_to(np.asarray(v, dtype=float), full).ravel()
+
+    def inp(v):   # an input held for every row stays a float (as the filters pass it)
+        return float(v) if np.ndim(v) == 0 else row(v)
+
+    n = int(np.prod(full))
+    out = derivatives_rows_into(np.empty((5, n)), np.empty((12, n)), row(ub), row(wb), row(th),
+                                row(q), inp(de), inp(dt), p)
+    if shape == ():
+        return tuple(np.float64(r[0]) for r in out)
+    return tuple(r.reshape(shape) for r in out)
 
 
 def derivatives(z: np.ndarray, u: np.ndarray, p: AirframeParams) -> np.ndarray:
@@ -263,11 +192,11 @@ def rk4_step_scalar(z, u, dt: float, p: AirframeParams) -> tuple[float, float, f
 
 def derivatives_rows_into(out: np.ndarray, tmp: np.ndarray, ub: np.ndarray, wb: np.ndarray,
                           th: np.ndarray, q: np.ndarray, de, dt, p: AirframeParams) -> np.ndarray:
-    """`derivatives_rows` written into out (5, N), with scratch rows tmp (>= 12, N); returns out.
+    """dz/dt written into out (5, N), with scratch rows tmp (>= 12, N); returns out.
 
-    ub, wb, th, q: float (N,) rows; de, dt: floats or (N,) rows. The same operations in the same
-    order as `derivatives_rows` (bit-identical results), only without the temporaries: the
-    particle filters' process model calls it once per step (NonlinearProcess).
+    ub, wb, th, q: float (N,) rows; de, dt: floats or (N,) rows. In-place numpy arithmetic (no
+    per-call temporaries): the particle filters' process model calls it once per step with
+    reused buffers (NonlinearProcess); `derivatives_rows` wraps it for arbitrary shapes.
     """
     k = _consts(p)
     va2 = np.multiply(ub, ub, out=tmp[0])
