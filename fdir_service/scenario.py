@@ -18,6 +18,13 @@ from typing import Any
 
 from fdir_service.errors import ConfigError
 from fdir_service.paths import scenario_path
+from fdir_service.tomltable import (
+    ALL_NON_NEGATIVE,
+    NON_NEGATIVE,
+    POSITIVE,
+    UNIT_INTERVAL,
+    TomlTable,
+)
 
 MEASUREMENTS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q")
 """Measurement names, in the order a scenario may list them; SI units (m, m, m/s, m/s, rad, rad/s)."""
@@ -184,118 +191,41 @@ class Scenario:
 
 # ----------------------------------------------------------------------------- validation
 
-class _Table:
-    """A TOML table being read: every key must be consumed, else it is reported as unknown."""
-
-    def __init__(self, data: Any, where: str) -> None:
-        if not isinstance(data, dict):
-            raise ConfigError(f"{where}: expected a table, got {type(data).__name__}")
-        self.data = dict(data)
-        self.where = where
-
-    def _key(self, key: str) -> str:
-        return f"{self.where}.{key}" if self.where else key
-
-    def pop(self, key: str, kind: str, default: Any = ..., *, choices: tuple[str, ...] = (),
-            positive: bool = False, nonneg: bool = False, unit_interval: bool = False) -> Any:
-        if key not in self.data:
-            if default is ...:
-                raise ConfigError(f"{self._key(key)}: missing, expected {kind}")
-            return default
-        val = self.data.pop(key)
-        name = self._key(key)
-        if kind == "number":
-            if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val):
-                raise ConfigError(f"{name}: expected a finite number, got {val!r}")
-            val = float(val)
-        elif kind == "integer":
-            if isinstance(val, bool) or not isinstance(val, int):
-                raise ConfigError(f"{name}: expected an integer, got {val!r}")
-        elif kind == "string":
-            if not isinstance(val, str):
-                raise ConfigError(f"{name}: expected a string, got {val!r}")
-            if choices and val not in choices:
-                raise ConfigError(f"{name}: expected one of {', '.join(choices)}, got {val!r}")
-        elif kind == "boolean":
-            if not isinstance(val, bool):
-                raise ConfigError(f"{name}: expected true or false, got {val!r}")
-        elif kind == "numbers":
-            if not isinstance(val, list) or not all(
-                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                for v in val
-            ):
-                raise ConfigError(f"{name}: expected a list of finite numbers, got {val!r}")
-            val = tuple(float(v) for v in val)
-            if nonneg and any(v < 0 for v in val):
-                raise ConfigError(f"{name}: expected non-negative numbers, got {val!r}")
-            return val
-        elif kind == "strings":
-            if not isinstance(val, list) or not all(isinstance(v, str) for v in val):
-                raise ConfigError(f"{name}: expected a list of strings, got {val!r}")
-            for v in val:
-                if choices and v not in choices:
-                    raise ConfigError(f"{name}: {v!r} is not one of {', '.join(choices)}")
-            return tuple(val)
-        if kind in ("number", "integer"):
-            if positive and val <= 0:
-                raise ConfigError(f"{name}: expected a positive value, got {val!r}")
-            if nonneg and val < 0:
-                raise ConfigError(f"{name}: expected a non-negative value, got {val!r}")
-            if unit_interval and not 0.0 <= val <= 1.0:
-                raise ConfigError(f"{name}: expected a value in [0, 1], got {val!r}")
-        return val
-
-    def sub(self, key: str, required: bool = False) -> _Table:
-        if key not in self.data:
-            if required:
-                raise ConfigError(f"{self._key(key)}: missing table")
-            return _Table({}, self._key(key))
-        return _Table(self.data.pop(key), self._key(key))
-
-    def finish(self) -> None:
-        if self.data:
-            keys = ", ".join(self._key(k) for k in sorted(self.data))
-            raise ConfigError(f"unknown key(s): {keys}")
-
-
-def _profile(t: _Table) -> ProfileComponent:
-    shape = t.pop("shape", "string", choices=PROFILE_SHAPES)
-    start = t.pop("start_s", "number", nonneg=True)
-    end = t.pop("end_s", "number", positive=True)
+def _profile(t: TomlTable) -> ProfileComponent:
+    shape = t.take("shape", "string", choices=PROFILE_SHAPES)
+    start = t.take("start_s", "number", check=NON_NEGATIVE)
+    end = t.take("end_s", "number", check=POSITIVE)
     if end <= start:
-        raise ConfigError(f"{t.where}.end_s: expected a time after start_s ({start}), got {end}")
+        raise ConfigError(f"{t.key('end_s')}: expected a time after start_s ({start}), got {end}")
     comp = ProfileComponent(
-        shape=shape, start_s=start, end_s=end, amplitude=t.pop("amplitude", "number"),
-        tau_s=t.pop("tau_s", "number", 1.0, positive=True),
-        on_s=t.pop("on_s", "number", 1.0, positive=True),
-        off_s=t.pop("off_s", "number", 1.0, positive=True),
+        shape=shape, start_s=start, end_s=end, amplitude=t.take("amplitude", "number"),
+        tau_s=t.take("tau_s", "number", 1.0, check=POSITIVE),
+        on_s=t.take("on_s", "number", 1.0, check=POSITIVE),
+        off_s=t.take("off_s", "number", 1.0, check=POSITIVE),
     )
     t.finish()
     return comp
 
 
-def _fault(t: _Table, measurements: tuple[str, ...]) -> FaultChannel:
-    fid = t.pop("id", "string")
+def _fault(t: TomlTable, measurements: tuple[str, ...]) -> FaultChannel:
+    fid = t.take("id", "string")
     if not fid.isidentifier() or len(fid) > 7:
-        raise ConfigError(f"{t.where}.id: expected a short identifier (<= 7 chars, for "
+        raise ConfigError(f"{t.key('id')}: expected a short identifier (<= 7 chars, for "
                           f"MAVLink names like pfa_<id>), got {fid!r}")
-    target = t.pop("target", "string", choices=measurements + ACTUATORS)
+    target = t.take("target", "string", choices=measurements + ACTUATORS)
     kind = "actuator" if target in ACTUATORS else "sensor"
-    unit = t.pop("unit", "string", choices=tuple(UNITS))
+    unit = t.take("unit", "string", choices=tuple(UNITS))
     scale = UNITS[unit]
     comps = []
-    raw = t.data.pop("profile", [])
-    if not isinstance(raw, list):
-        raise ConfigError(f"{t.where}.profile: expected an array of tables ([[faults.profile]])")
-    for i, c in enumerate(raw):
-        pc = _profile(_Table(c, f"{t.where}.profile[{i}]"))
+    for pt in t.tables("profile"):
+        pc = _profile(pt)
         comps.append(ProfileComponent(pc.shape, pc.start_s, pc.end_s, pc.amplitude * scale,
                                       pc.tau_s, pc.on_s, pc.off_s))
     ch = FaultChannel(
         id=fid, target=target, kind=kind, unit=unit, profile=tuple(comps),
-        sigma_f=t.pop("sigma_f", "number", nonneg=True),
-        x0_sigma=t.pop("x0_sigma", "number", 0.0, nonneg=True),
-        amplitude_max=_scaled(t.pop("amplitude_max", "number", None, positive=True), scale),
+        sigma_f=t.take("sigma_f", "number", check=NON_NEGATIVE),
+        x0_sigma=t.take("x0_sigma", "number", 0.0, check=NON_NEGATIVE),
+        amplitude_max=_scaled(t.take("amplitude_max", "number", None, check=POSITIVE), scale),
     )
     t.finish()
     return ch
@@ -307,112 +237,106 @@ def _scaled(v: float | None, scale: float) -> float | None:
 
 def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
     """Validate a parsed scenario TOML document; raise ConfigError naming the first bad key."""
-    root = _Table(doc, "")
+    root = TomlTable(doc, "")
     s = root.sub("scenario", required=True)
-    sid = s.pop("id", "string")
-    title = s.pop("title", "string", "")
-    section = s.pop("thesis_section", "string", "")
-    table = s.pop("thesis_table", "string", "")
-    duration = s.pop("duration_s", "number", 50.0, positive=True)
-    dt = s.pop("dt_s", "number", 0.05, positive=True)
+    sid = s.take("id", "string")
+    title = s.take("title", "string", "")
+    section = s.take("thesis_section", "string", "")
+    table = s.take("thesis_table", "string", "")
+    duration = s.take("duration_s", "number", 50.0, check=POSITIVE)
+    dt = s.take("dt_s", "number", 0.05, check=POSITIVE)
     s.finish()
 
     t = root.sub("truth")
     truth = TruthConfig(
-        model=t.pop("model", "string", "nonlinear", choices=("linear", "nonlinear")),
-        linear_matrices=t.pop("linear_matrices", "string", "printed",
-                              choices=("printed", "derived")),
-        airspeed_mps=t.pop("airspeed_mps", "number", 40.0, positive=True),
-        altitude_m=t.pop("altitude_m", "number", 500.0),
+        model=t.take("model", "string", "nonlinear", choices=("linear", "nonlinear")),
+        linear_matrices=t.take("linear_matrices", "string", "printed",
+                               choices=("printed", "derived")),
+        airspeed_mps=t.take("airspeed_mps", "number", 40.0, check=POSITIVE),
+        altitude_m=t.take("altitude_m", "number", 500.0),
     )
     t.finish()
 
     c = root.sub("command")
     steps = []
-    raw_steps = c.data.pop("altitude_steps", [])
-    if not isinstance(raw_steps, list):
-        raise ConfigError("command.altitude_steps: expected an array of tables")
-    for i, st in enumerate(raw_steps):
-        tt = _Table(st, f"command.altitude_steps[{i}]")
-        steps.append(AltitudeStep(tt.pop("t_s", "number", nonneg=True),
-                                  tt.pop("altitude_m", "number")))
+    for tt in c.tables("altitude_steps"):
+        steps.append(AltitudeStep(tt.take("t_s", "number", check=NON_NEGATIVE),
+                                  tt.take("altitude_m", "number")))
         tt.finish()
     command = CommandConfig(
-        altitude_m=c.pop("altitude_m", "number", truth.altitude_m),
-        airspeed_mps=c.pop("airspeed_mps", "number", truth.airspeed_mps, positive=True),
+        altitude_m=c.take("altitude_m", "number", truth.altitude_m),
+        airspeed_mps=c.take("airspeed_mps", "number", truth.airspeed_mps, check=POSITIVE),
         altitude_steps=tuple(steps),
     )
     c.finish()
 
     se = root.sub("sensors", required=True)
-    meas = se.pop("measurements", "strings", choices=MEASUREMENTS)
+    meas = se.take("measurements", "strings", choices=MEASUREMENTS)
     if not meas or len(set(meas)) != len(meas):
         raise ConfigError("sensors.measurements: expected a non-empty list without repeats")
     sig_t = se.sub("sigma", required=True)
-    sigma = {m: sig_t.pop(m, "number", positive=True) for m in meas}
+    sigma = {m: sig_t.take(m, "number", check=POSITIVE) for m in meas}
     sig_t.finish()
     sensors = SensorConfig(
         measurements=meas, sigma=sigma,
-        filter_noise_factor=se.pop("filter_noise_factor", "number", 1.5, positive=True),
-        gnss_gauss_markov=se.pop("gnss_gauss_markov", "boolean", False),
+        filter_noise_factor=se.take("filter_noise_factor", "number", 1.5, check=POSITIVE),
+        gnss_gauss_markov=se.take("gnss_gauss_markov", "boolean", False),
     )
     se.finish()
 
-    raw_faults = root.data.pop("faults", [])
-    if not isinstance(raw_faults, list):
-        raise ConfigError("faults: expected an array of tables ([[faults]])")
-    faults = tuple(_fault(_Table(f, f"faults[{i}]"), meas) for i, f in enumerate(raw_faults))
+    faults = tuple(_fault(ft, meas) for ft in root.tables("faults"))
     ids = [f.id for f in faults]
     if len(set(ids)) != len(ids):
         raise ConfigError(f"faults: fault ids must be unique, got {ids}")
 
     e = root.sub("estimator", required=True)
-    filters = e.pop("filters", "strings", choices=FILTER_NAMES)
-    proposed = e.pop("proposed", "string", choices=FILTER_NAMES)
+    filters = e.take("filters", "strings", choices=FILTER_NAMES)
+    proposed = e.take("proposed", "string", choices=FILTER_NAMES)
     if proposed not in filters:
         raise ConfigError(f"estimator.proposed: {proposed!r} must be one of estimator.filters")
-    sigma_x = e.pop("sigma_x", "numbers", nonneg=True)
-    x0_sigma = e.pop("x0_sigma", "numbers", nonneg=True)
+    sigma_x = e.take("sigma_x", "numbers", check=ALL_NON_NEGATIVE)
+    x0_sigma = e.take("x0_sigma", "numbers", check=ALL_NON_NEGATIVE)
     for key, val in (("sigma_x", sigma_x), ("x0_sigma", x0_sigma)):
         if len(val) != 5:
             raise ConfigError(f"estimator.{key}: expected 5 values [p_d, u, w, theta, q], "
                               f"got {len(val)}")
-    bw = e.pop("bandwidth", "number", None, positive=True)
+    bw = e.take("bandwidth", "number", None, check=POSITIVE)
     imm_t = e.sub("imm")
     nf = len(faults)
-    imm = ImmConfig(mode0_sigma_f=imm_t.pop("mode0_sigma_f", "numbers", (0.0,) * nf, nonneg=True),
-                    mode1_sigma_f=imm_t.pop("mode1_sigma_f", "numbers",
-                                            tuple(f.sigma_f for f in faults), nonneg=True))
+    imm = ImmConfig(mode0_sigma_f=imm_t.take("mode0_sigma_f", "numbers", (0.0,) * nf,
+                                             check=ALL_NON_NEGATIVE),
+                    mode1_sigma_f=imm_t.take("mode1_sigma_f", "numbers",
+                                             tuple(f.sigma_f for f in faults), check=ALL_NON_NEGATIVE))
     for key, val in (("mode0_sigma_f", imm.mode0_sigma_f), ("mode1_sigma_f", imm.mode1_sigma_f)):
         if len(val) != nf:
             raise ConfigError(f"estimator.imm.{key}: expected {nf} values (one per fault), "
                               f"got {len(val)}")
     imm_t.finish()
     g_t = e.sub("gating")
-    gating = GatingConfig(gate_sigma=g_t.pop("gate_sigma", "number", 5.0, positive=True),
-                          hold_s=g_t.pop("hold_s", "number", 0.25, nonneg=True))
+    gating = GatingConfig(gate_sigma=g_t.take("gate_sigma", "number", 5.0, check=POSITIVE),
+                          hold_s=g_t.take("hold_s", "number", 0.25, check=NON_NEGATIVE))
     g_t.finish()
     est = EstimatorConfig(
         filters=filters, proposed=proposed,
-        particles=e.pop("particles", "integer", 1000, positive=True),
-        process_model=e.pop("process_model", "string", "nonlinear",
-                            choices=("linear", "nonlinear")),
-        linear_matrices=e.pop("linear_matrices", "string", "printed",
-                              choices=("printed", "derived")),
+        particles=e.take("particles", "integer", 1000, check=POSITIVE),
+        process_model=e.take("process_model", "string", "nonlinear",
+                             choices=("linear", "nonlinear")),
+        linear_matrices=e.take("linear_matrices", "string", "printed",
+                               choices=("printed", "derived")),
         sigma_x=sigma_x, x0_sigma=x0_sigma,
-        sigma_x_basis=e.pop("sigma_x_basis", "string", "step", choices=("step", "sqrt_second")),
-        resample_threshold=e.pop("resample_threshold", "number", 0.5, unit_interval=True),
+        sigma_x_basis=e.take("sigma_x_basis", "string", "step", choices=("step", "sqrt_second")),
+        resample_threshold=e.take("resample_threshold", "number", 0.5, check=UNIT_INTERVAL),
         bandwidth=bw,
-        bandwidth_k=e.pop("bandwidth_k", "number", 0.2, positive=True),
-        resampler=e.pop("resampler", "string", "multinomial",
-                        choices=("multinomial", "systematic")),
-        mode0=e.pop("mode0", "string", "forced_zero", choices=("forced_zero", "reset_on_exit")),
-        pi01=e.pop("pi01", "number", 0.01, unit_interval=True),
-        pi10=e.pop("pi10", "number", 0.01, unit_interval=True),
-        saddlepoint_window=e.pop("saddlepoint_window", "integer", 3, positive=True),
-        sentinel_weighting=e.pop("sentinel_weighting", "string", "thesis",
-                                 choices=("thesis", "prior")),
-        jitter=e.pop("jitter", "string", "global", choices=("global", "per_mode")),
+        bandwidth_k=e.take("bandwidth_k", "number", 0.2, check=POSITIVE),
+        resampler=e.take("resampler", "string", "multinomial",
+                         choices=("multinomial", "systematic")),
+        mode0=e.take("mode0", "string", "forced_zero", choices=("forced_zero", "reset_on_exit")),
+        pi01=e.take("pi01", "number", 0.01, check=UNIT_INTERVAL),
+        pi10=e.take("pi10", "number", 0.01, check=UNIT_INTERVAL),
+        saddlepoint_window=e.take("saddlepoint_window", "integer", 3, check=POSITIVE),
+        sentinel_weighting=e.take("sentinel_weighting", "string", "thesis",
+                                  choices=("thesis", "prior")),
+        jitter=e.take("jitter", "string", "global", choices=("global", "per_mode")),
         imm=imm, gating=gating,
     )
     e.finish()

@@ -21,6 +21,7 @@ from typing import Any
 from fdir_service.errors import ConfigError
 from fdir_service.paths import config_dir, scenario_path
 from fdir_service.scenario import ACTUATORS, FILTER_NAMES, Scenario, load_scenario, parse_scenario
+from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, Check, TomlTable
 
 TRANSFORMS = ("none", "negate", "pressure_to_altitude", "pwm")
 _FIELD_RE = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
@@ -207,61 +208,15 @@ def load_service_config(path: str | Path | None = None) -> ServiceConfig:
 
 # ----------------------------------------------------------------------------- validation
 
-class _T:
-    """A TOML table being consumed: leftover keys are reported as unknown."""
-
-    def __init__(self, data: Any, where: str) -> None:
-        if not isinstance(data, dict):
-            raise ConfigError(f"{where}: expected a table, got {type(data).__name__}")
-        self.d = dict(data)
-        self.where = where
-
-    def key(self, k: str) -> str:
-        return f"{self.where}.{k}" if self.where else k
-
-    def get(self, k: str, kind: type | tuple[type, ...], default: Any = ..., *,
-            check: Any = None, expect: str = "") -> Any:
-        if k not in self.d:
-            if default is ...:
-                raise ConfigError(f"{self.key(k)}: missing")
-            return default
-        v = self.d.pop(k)
-        kinds = kind if isinstance(kind, tuple) else (kind,)
-        ok = isinstance(v, kinds) and not (isinstance(v, bool) and bool not in kinds)
-        if float in kinds and isinstance(v, int) and not isinstance(v, bool):
-            v, ok = float(v), True
-        if ok and isinstance(v, float) and not math.isfinite(v):
-            ok = False
-        names = {str: "a string", int: "an integer", float: "a number", bool: "true or false",
-                 list: "an array"}
-        if not ok:
-            raise ConfigError(f"{self.key(k)}: expected {names.get(kinds[0], kinds[0].__name__)}, "
-                              f"got {v!r}")
-        if check is not None and not check(v):
-            raise ConfigError(f"{self.key(k)}: expected {expect}, got {v!r}")
-        return v
-
-    def sub(self, k: str) -> _T:
-        return _T(self.d.pop(k, {}), self.key(k))
-
-    def finish(self) -> None:
-        if self.d:
-            raise ConfigError("unknown key(s): " + ", ".join(self.key(k) for k in sorted(self.d)))
-
-
-def _positive(v: float) -> bool:
-    return v > 0
-
-
-def _field_map(t: _T, name: str, is_input: bool) -> FieldMap:
+def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
     from fdir_service.mavlink import dialect
 
-    msg_name = t.get("message", str)
+    msg_name = t.take("message", "string")
     cls = getattr(dialect, f"MAVLink_{msg_name.lower()}_message", None)
     if cls is None or msg_name != msg_name.upper():
         raise ConfigError(f"{t.key('message')}: {msg_name!r} is not a MAVLink message of the "
                           "fdir dialect (use the upper-case name, e.g. GPS_RAW_INT)")
-    spec = t.get("field", str)
+    spec = t.take("field", "string")
     m = _FIELD_RE.match(spec)
     if not m or m.group(1) not in cls.fieldnames:
         raise ConfigError(f"{t.key('field')}: {spec!r} is not a field of {msg_name} "
@@ -275,34 +230,33 @@ def _field_map(t: _T, name: str, is_input: bool) -> FieldMap:
     if not {"time_boot_ms", "time_usec"} & set(cls.fieldnames):
         raise ConfigError(f"{t.key('message')}: {msg_name} carries no time_boot_ms/time_usec "
                           "timestamp, so it cannot be placed in a frame")
-    transform = t.get("transform", str, "none", check=lambda v: v in TRANSFORMS,
-                      expect="one of " + ", ".join(TRANSFORMS))
+    transform = t.take("transform", "string", "none", choices=TRANSFORMS)
     kw: dict[str, Any] = {}
     if transform == "pwm":
-        kw["pwm_min"] = t.get("pwm_min", float, 1000.0)
-        kw["pwm_max"] = t.get("pwm_max", float, 2000.0,
-                              check=lambda v: v > kw["pwm_min"], expect="a value above pwm_min")
-        kw["min"] = t.get("min", float)
-        kw["max"] = t.get("max", float, check=lambda v: v > kw["min"], expect="a value above min")
+        kw["pwm_min"] = t.take("pwm_min", "number", 1000.0)
+        kw["pwm_max"] = t.take("pwm_max", "number", 2000.0,
+                               check=Check(lambda v: v > kw["pwm_min"], "a value above pwm_min"))
+        kw["min"] = t.take("min", "number")
+        kw["max"] = t.take("max", "number", check=Check(lambda v: v > kw["min"], "a value above min"))
     else:
-        kw["min"] = t.get("valid_min", float, -math.inf)
-        kw["max"] = t.get("valid_max", float, math.inf,
-                          check=lambda v: v > kw["min"], expect="a value above valid_min")
+        kw["min"] = t.take("valid_min", "number", -math.inf)
+        kw["max"] = t.take("valid_max", "number", math.inf,
+                           check=Check(lambda v: v > kw["min"], "a value above valid_min"))
     wt = t.sub("where")
     where = []
-    for wk in list(wt.d):
+    for wk in wt.keys():
         if wk not in cls.fieldnames:
             raise ConfigError(f"{wt.key(wk)}: {wk!r} is not a field of {msg_name}")
-        where.append((wk, wt.get(wk, float)))
+        where.append((wk, wt.take(wk, "number")))
     wt.finish()
     fm = FieldMap(
         name=name, message=msg_name, field=fname, index=idx,
-        scale=t.get("scale", float, 1.0, check=lambda v: v != 0, expect="a non-zero number"),
-        offset=t.get("offset", float, 0.0), transform=transform,
+        scale=t.take("scale", "number", 1.0, check=Check(lambda v: v != 0, "a non-zero number")),
+        offset=t.take("offset", "number", 0.0), transform=transform,
         where=tuple(where),
-        stale_s=t.get("stale_s", float, 1.0, check=_positive, expect="a positive time (s)"),
-        frozen_s=(0.0 if is_input else t.get("frozen_s", float, 0.0, check=lambda v: v >= 0,
-                                               expect="a time >= 0 (s; 0 = off)")),
+        stale_s=t.take("stale_s", "number", 1.0, check=POSITIVE.saying("a positive time (s)")),
+        frozen_s=(0.0 if is_input else t.take("frozen_s", "number", 0.0,
+                                               check=NON_NEGATIVE.saying("a time >= 0 (s; 0 = off)"))),
         **kw,
     )
     t.finish()
@@ -310,9 +264,9 @@ def _field_map(t: _T, name: str, is_input: bool) -> FieldMap:
 
 
 def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: str) -> ServiceConfig:
-    root = _T(doc, "")
+    root = TomlTable(doc, "")
     s = root.sub("service")
-    scen_ref = s.get("scenario", str, "ch4")
+    scen_ref = s.take("scenario", "string", "ch4")
     if scenario_text is None:
         try:
             scenario_text = scenario_path(scen_ref).read_text()
@@ -325,63 +279,64 @@ def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: st
             scenario = parse_scenario(tomllib.loads(scenario_text), f"<recorded {scen_ref}>")
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"service.scenario: recorded scenario text is not TOML: {exc}") from None
-    filt = s.get("filter", str, scenario.estimator.proposed, check=lambda v: v in FILTER_NAMES,
-                 expect="one of " + ", ".join(FILTER_NAMES))
-    particles = s.get("particles", int, scenario.estimator.particles, check=_positive,
-                      expect="a positive number of particles")
-    seed = s.get("seed", int, 0, check=lambda v: v >= 0, expect="a non-negative integer")
+    filt = s.take("filter", "string", scenario.estimator.proposed, choices=FILTER_NAMES)
+    particles = s.take("particles", "integer", scenario.estimator.particles,
+                       check=POSITIVE.saying("a positive number of particles"))
+    seed = s.take("seed", "integer", 0, check=NON_NEGATIVE.saying("a non-negative integer"))
     s.finish()
 
     link = root.sub("link")
-    master = link.get("master", str, "udpin:127.0.0.1:14550",
-                      check=lambda v: ":" in v, expect="a mavutil URL such as udpin:127.0.0.1:14550")
-    gcs = link.get("gcs", list, [])
-    if not all(isinstance(g, str) and ":" in g for g in gcs):
-        raise ConfigError(f"link.gcs: expected a list of mavutil URLs, got {gcs!r}")
-    ap_sys = link.get("autopilot_system", int, 0, check=lambda v: 0 <= v <= 255,
-                      expect="0 (learn from the first HEARTBEAT) or a system id 1..255")
-    comp = link.get("component", int, 191, check=lambda v: 1 <= v <= 255, expect="a component id 1..255")
+    master = link.take("master", "string", "udpin:127.0.0.1:14550",
+                       check=Check(lambda v: ":" in v, "a mavutil URL such as udpin:127.0.0.1:14550"))
+    gcs = link.take("gcs", "strings", (),
+                    check=Check(lambda v: all(":" in g for g in v), "a list of mavutil URLs"))
+    ap_sys = link.take("autopilot_system", "integer", 0,
+                       check=Check(lambda v: 0 <= v <= 255,
+                                   "0 (learn from the first HEARTBEAT) or a system id 1..255"))
+    comp = link.take("component", "integer", 191,
+                     check=Check(lambda v: 1 <= v <= 255, "a component id 1..255"))
     link.finish()
 
     sg = root.sub("signing")
-    key_file = sg.get("key_file", str, "")
-    link_id = sg.get("link_id", int, 0, check=lambda v: 0 <= v <= 255, expect="0..255")
+    key_file = sg.take("key_file", "string", "")
+    link_id = sg.take("link_id", "integer", 0, check=Check(lambda v: 0 <= v <= 255, "0..255"))
     sg.finish()
 
     fr = root.sub("frames")
-    rate = fr.get("rate_hz", float, 1.0 / scenario.dt_s, check=_positive, expect="a positive rate")
+    rate = fr.take("rate_hz", "number", 1.0 / scenario.dt_s, check=POSITIVE.saying("a positive rate"))
     if abs(rate * scenario.dt_s - 1.0) > 1e-6:
         raise ConfigError(f"frames.rate_hz: the scenario's filter models are discretised at "
                           f"dt = {scenario.dt_s} s, so the rate must be {1.0 / scenario.dt_s:g} Hz, "
                           f"got {rate!r}")
-    max_gap = fr.get("max_gap_s", float, 2.0, check=lambda v: v >= 0, expect="a non-negative time (s)")
+    max_gap = fr.take("max_gap_s", "number", 2.0, check=NON_NEGATIVE.saying("a non-negative time (s)"))
     fr.finish()
 
     pb = root.sub("publish")
     dc = pb.sub("declare")
-    p_decl = dc.get("p_declare", float, 0.9, check=lambda v: 0 < v <= 1, expect="a probability in (0, 1]")
+    p_decl = dc.take("p_declare", "number", 0.9,
+                     check=Check(lambda v: 0 < v <= 1, "a probability in (0, 1]"))
     declare = DeclareConfig(
         p_declare=p_decl,
-        declare_hold_s=dc.get("declare_hold_s", float, 0.2, check=lambda v: v >= 0, expect="a time >= 0"),
-        p_clear=dc.get("p_clear", float, 0.5, check=lambda v: 0 <= v < p_decl,
-                       expect=f"a probability below p_declare ({p_decl})"),
-        clear_hold_s=dc.get("clear_hold_s", float, 1.0, check=lambda v: v >= 0, expect="a time >= 0"),
+        declare_hold_s=dc.take("declare_hold_s", "number", 0.2, check=NON_NEGATIVE.saying("a time >= 0")),
+        p_clear=dc.take("p_clear", "number", 0.5,
+                        check=Check(lambda v: 0 <= v < p_decl, f"a probability below p_declare ({p_decl})")),
+        clear_hold_s=dc.take("clear_hold_s", "number", 1.0, check=NON_NEGATIVE.saying("a time >= 0")),
     )
     dc.finish()
     publish = PublishConfig(
-        named_value_rate_hz=pb.get("named_value_rate_hz", float, 10.0, check=_positive,
-                                   expect="a positive rate"),
-        estimate_rate_hz=pb.get("estimate_rate_hz", float, 1.0 / scenario.dt_s, check=_positive,
-                                expect="a positive rate"),
-        heartbeat_period_s=pb.get("heartbeat_period_s", float, 1.0, check=_positive,
-                                  expect="a positive period"),
-        stale_statustext=pb.get("stale_statustext", bool, True),
+        named_value_rate_hz=pb.take("named_value_rate_hz", "number", 10.0,
+                                    check=POSITIVE.saying("a positive rate")),
+        estimate_rate_hz=pb.take("estimate_rate_hz", "number", 1.0 / scenario.dt_s,
+                                 check=POSITIVE.saying("a positive rate")),
+        heartbeat_period_s=pb.take("heartbeat_period_s", "number", 1.0,
+                                   check=POSITIVE.saying("a positive period")),
+        stale_statustext=pb.take("stale_statustext", "boolean", True),
         declare=declare,
     )
     pb.finish()
 
     mt = root.sub("measurements")
-    maps = {k: _field_map(mt.sub(k), k, False) for k in list(mt.d)}
+    maps = {k: _field_map(mt.sub(k), k, False) for k in mt.keys()}
     mt.finish()
     missing = [m for m in scenario.sensors.measurements if m not in maps]
     if missing:
@@ -391,7 +346,7 @@ def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: st
 
     it = root.sub("inputs")
     imaps = {}
-    for k in list(it.d):
+    for k in it.keys():
         if k not in ACTUATORS:
             raise ConfigError(f"inputs.{k}: unknown input; expected {', '.join(ACTUATORS)}")
         imaps[k] = _field_map(it.sub(k), k, True)
@@ -403,34 +358,32 @@ def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: st
 
     hs = root.sub("health")
     health = HealthConfig(
-        link_timeout_s=hs.get("link_timeout_s", float, 2.0, check=_positive, expect="a positive time (s)"),
-        min_n_eff=hs.get("min_n_eff", float, 1.5, check=lambda v: v >= 0, expect="a number >= 0"),
-        degenerate_frames=hs.get("degenerate_frames", int, 10, check=_positive,
-                                 expect="a positive number of frames"),
-        reinit_gate_sigmas=hs.get("reinit_gate_sigmas", float, 20.0, check=_positive,
-                                  expect="a positive number of sigmas"),
-        reinit_holdoff_s=hs.get("reinit_holdoff_s", float, 1.0, check=lambda v: v >= 0,
-                                expect="a time >= 0 (s)"),
-        statustext_interval_s=hs.get("statustext_interval_s", float, 10.0, check=lambda v: v >= 0,
-                                     expect="a time >= 0 (s)"),
-        max_state_jump=tuple(float(v) for v in hs.get(
-            "max_state_jump", list, [50.0, 20.0, 20.0, 1.0, 5.0],
-            check=lambda v: len(v) in (0, 5) and all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
-                for x in v),
-            expect="[] (off) or 5 positive numbers [p_d m, u m/s, w m/s, theta rad, q rad/s]")),
+        link_timeout_s=hs.take("link_timeout_s", "number", 2.0, check=POSITIVE.saying("a positive time (s)")),
+        min_n_eff=hs.take("min_n_eff", "number", 1.5, check=NON_NEGATIVE.saying("a number >= 0")),
+        degenerate_frames=hs.take("degenerate_frames", "integer", 10,
+                                  check=POSITIVE.saying("a positive number of frames")),
+        reinit_gate_sigmas=hs.take("reinit_gate_sigmas", "number", 20.0,
+                                   check=POSITIVE.saying("a positive number of sigmas")),
+        reinit_holdoff_s=hs.take("reinit_holdoff_s", "number", 1.0,
+                                 check=NON_NEGATIVE.saying("a time >= 0 (s)")),
+        statustext_interval_s=hs.take("statustext_interval_s", "number", 10.0,
+                                      check=NON_NEGATIVE.saying("a time >= 0 (s)")),
+        max_state_jump=hs.take(
+            "max_state_jump", "numbers", (50.0, 20.0, 20.0, 1.0, 5.0),
+            check=Check(lambda v: len(v) in (0, 5) and all(x > 0 for x in v),
+                        "[] (off) or 5 positive numbers [p_d m, u m/s, w m/s, theta rad, q rad/s]")),
     )
     hs.finish()
 
     rc = root.sub("record")
     record = RecordConfig(
-        enabled=rc.get("enabled", bool, True),
-        directory=rc.get("directory", str, "recordings", check=lambda v: v.strip() != "",
-                         expect="a directory path"),
-        rotate_mb=rc.get("rotate_mb", float, 100.0, check=lambda v: v >= 0,
-                         expect="a size >= 0 (MB; 0 = never)"),
-        rotate_s=rc.get("rotate_s", float, 3600.0, check=lambda v: v >= 0,
-                        expect="a duration >= 0 (s; 0 = never)"),
+        enabled=rc.take("enabled", "boolean", True),
+        directory=rc.take("directory", "string", "recordings",
+                          check=Check(lambda v: v.strip() != "", "a directory path")),
+        rotate_mb=rc.take("rotate_mb", "number", 100.0,
+                          check=NON_NEGATIVE.saying("a size >= 0 (MB; 0 = never)")),
+        rotate_s=rc.take("rotate_s", "number", 3600.0,
+                         check=NON_NEGATIVE.saying("a duration >= 0 (s; 0 = never)")),
     )
     rc.finish()
     root.finish()

@@ -82,3 +82,26 @@ def test_signing_key_file_checked(tmp_path):
         c.signing_key()
     kf.write_text("ab" * 32)
     assert c.signing_key() == bytes([0xAB]) * 32
+
+
+def test_scenario_and_service_share_one_reader():
+    """Both files go through `fdir_service.tomltable.TomlTable`: same types, coercions and messages."""
+    import tomllib
+
+    from fdir_service.paths import scenario_path
+    from fdir_service.scenario import parse_scenario
+
+    scen = tomllib.loads(scenario_path("ch4").read_text())
+    # an int is accepted where a number is expected, and becomes a float
+    scen["scenario"]["duration_s"] = 50
+    assert type(parse_scenario(scen).duration_s) is float
+    c = ServiceConfig.from_toml_text(BASE.replace("max_gap_s = 2.0", "max_gap_s = 3", 1))
+    assert c.max_gap_s == 3.0 and type(c.max_gap_s) is float
+    # a bool is not a number, and a non-finite number is refused: same message form in both files
+    for bad, shown in (("true", "True"), ("inf", "inf")):
+        scen["scenario"]["duration_s"] = tomllib.loads(f"v = {bad}")["v"]
+        with pytest.raises(ConfigError,
+                           match=rf"^scenario\.duration_s: expected a finite number, got {shown}$"):
+            parse_scenario(scen)
+        with pytest.raises(ConfigError, match=rf"frames\.max_gap_s: expected a finite number, got {shown}$"):
+            ServiceConfig.from_toml_text(BASE.replace("max_gap_s = 2.0", f"max_gap_s = {bad}", 1))
