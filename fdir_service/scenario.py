@@ -29,7 +29,8 @@ from fdir_service.tomltable import (
 MEASUREMENTS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q")
 """Measurement names, in the order a scenario may list them; SI units (m, m, m/s, m/s, rad, rad/s)."""
 ACTUATORS = ("delta_e", "delta_t")
-FILTER_NAMES = ("KF", "IMM-KF", "RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "EKF-GATE")
+FILTER_NAMES = ("KF", "IMM-KF", "RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "AJMRPF-thesis",
+                "ARJMRPF-thesis", "EKF-GATE")
 PROFILE_SHAPES = ("step", "exponential", "ramp", "intermittent")
 UNITS = {"m": 1.0, "m/s": 1.0, "rad": 1.0, "rad/s": 1.0, "deg": math.pi / 180.0,
          "deg/s": math.pi / 180.0, "1": 1.0}
@@ -150,6 +151,10 @@ class EstimatorConfig:
                                          # docs/estimation.md; needs faults.amplitude_max
     jitter: str = "global"               # "global" (thesis: one kernel from the whole cloud) |
                                          # "per_mode": one kernel per mode pattern (jump filters)
+    adaptive_transition: str = "thesis"  # AJMRPF/ARJMRPF: "thesis" (eq. 6.1: pi01 from Pfa and pi10
+                                         # from Pmd drive the jump) | "proposal": the Pfa-driven pi01
+                                         # proposes sentinels, importance-weighted against pi01/pi10
+                                         # above, and pi10 stays the fixed one (docs/estimation.md)
     imm: ImmConfig = field(default_factory=ImmConfig)
     gating: GatingConfig = field(default_factory=GatingConfig)
 
@@ -337,6 +342,8 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
         sentinel_weighting=e.take("sentinel_weighting", "string", "thesis",
                                   choices=("thesis", "prior")),
         jitter=e.take("jitter", "string", "global", choices=("global", "per_mode")),
+        adaptive_transition=e.take("adaptive_transition", "string", "thesis",
+                                   choices=("thesis", "proposal")),
         imm=imm, gating=gating,
     )
     e.finish()

@@ -135,6 +135,48 @@ def test_adaptive_activation_and_update_with_a_stub_roc():
     assert at.matrices().shape == (1, 2, 2)
 
 
+
+def test_adaptive_proposal_mode_is_importance_weighted_to_the_model_matrix():
+    # "proposal" (not the thesis): the Pfa-driven pi01 proposes the 0 -> 1 moves, pi10 stays the
+    # model's, and log P_model / P_proposal on every particle makes the weighted mode fractions
+    # those of the fixed matrix (pi01 = 0.01), whatever the proposal's pi01 (here 0.4404).
+    def roc(mu0, s0, mu1, s1, n_alpha=50):
+        return 0.0, 0.0, 0.0               # clear evidence: Pfa = Pmd = 0
+
+    at = AdaptiveTransition(np.array([0.015]), window=3, roc=roc, pi01=0.01, pi10=0.01, proposal=True)
+    at.update(np.array([0.2]), np.array([0.2]))
+    assert at.pi01[0] == pytest.approx(0.4404, abs=1e-4)
+    assert at.pi10[0] == 0.01                              # the model's, not 1 - phi_md(0) = 0.0596
+    thesis = AdaptiveTransition(np.array([0.015]), window=3, roc=roc, pi01=0.01, pi10=0.01)
+    thesis.update(np.array([0.2]), np.array([0.2]))
+    assert thesis.pi10[0] == pytest.approx(0.0596, abs=1e-4)
+    assert thesis.log_weight_correction(np.zeros((1, 4), bool), np.ones((1, 4), bool),
+                                        np.array([True])) is None
+    rng = np.random.default_rng(3)
+    N = 200_000
+    before = np.zeros((1, N), dtype=bool)
+    before[0, : N // 2] = True                             # half in mode 1, half in mode 0
+    modes = before.copy()
+    F = np.where(modes, 1.0, 0.0)
+    jump(F, modes, np.full((1, N), 2.0), np.array([True]), at.pi01, at.pi10, rng.random((1, N)))
+    lw = at.log_weight_correction(before, modes, np.array([True]))
+    w = np.exp(lw)
+    # exact per-move ratios
+    up = ~before[0] & modes[0]
+    assert np.allclose(lw[up], math.log(0.01 / at.pi01[0]))
+    assert np.allclose(lw[~before[0] & ~modes[0]], math.log(0.99 / (1 - at.pi01[0])))
+    assert np.allclose(lw[before[0]], 0.0)                 # pi10 proposal = model: ratio 1
+    # the weighted 0 -> 1 fraction among mode-0 particles is the model's pi01 (binomial bound)
+    m0 = ~before[0]
+    frac = w[m0 & modes[0]].sum() / w[m0].sum()
+    p = at.pi01[0]
+    se = 0.01 * math.sqrt((1 - p) / (m0.sum() * p))        # from the binomial count of the moves
+    assert abs(frac - 0.01) < 5 * se
+    assert abs(np.mean(up[m0]) - p) < 0.01                 # while 44 % of them actually moved
+    # a fault that could not jump this step (rows missing) gets no correction
+    lw_na = at.log_weight_correction(before, before, np.array([False]))
+    assert np.all(lw_na == 0.0)
+
 def _derivatives_reference(z, u, p):
     """The SPEC section 2 right-hand side written plainly (the original airframe code)."""
     ub, wb, th, q = z[..., 1], z[..., 2], z[..., 3], z[..., 4]

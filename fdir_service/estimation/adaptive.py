@@ -8,6 +8,15 @@ measurement's assumed noise for a sensor fault; the amplitude estimate's standar
 an actuator fault). Each is the optimum of the saddlepoint ROC search
 `saddlepoint.roc_optimal(mu0, s0, mu1, s1)`. Then eq. 6.1/6.76:
 pi00 = phi_fa(Pfa), pi01 = 1 - pi00, pi11 = phi_md(Pmd), pi10 = 1 - pi11.
+
+proposal=True (not the thesis; scenario `estimator.adaptive_transition = "proposal"`): the jump
+uses the Pfa-driven pi01 as a *proposal* for the 0 -> 1 move, pi10 stays the model's fixed value,
+and the filter multiplies each particle's weight by P_model(transition) / P_proposal(transition)
+(`log_weight_correction`), so the posterior is the fixed-matrix model's and the adaptive part only
+decides where particles are spent. Reason (docs/estimation.md, "ch6"): the Pmd-driven pi10 looks at
+the mode-1 mean alone, not at the data, so while a growing fault is still small (Pmd ~ 0.3) it
+sends ~45 % of the young mode-1 particles back to 0 every step; and the unweighted data-driven
+pi01 makes fault-free sentinels chase noise.
 """
 
 from __future__ import annotations
@@ -45,7 +54,8 @@ class AdaptiveTransition:
     adaptive = True
 
     def __init__(self, sigma: np.ndarray, window: int = 3, n_alpha: int = 50,
-                 roc: Callable | None = None, pi01: float = 0.01, pi10: float = 0.01) -> None:
+                 roc: Callable | None = None, pi01: float = 0.01, pi10: float = 0.01,
+                 proposal: bool = False) -> None:
         self.sigma = np.asarray(sigma, dtype=float).copy()
         nf = self.sigma.size
         self.window = int(window)
@@ -59,6 +69,10 @@ class AdaptiveTransition:
         self._zero = np.zeros(self.window)
         self.pi01 = np.full(nf, float(pi01))
         self.pi10 = np.full(nf, float(pi10))
+        self.proposal = bool(proposal)
+        self.model_pi01 = self.pi01.copy()
+        """(nf,) the model's fixed pi01, pi10 (the estimator's): the target of the proposal mode."""
+        self.model_pi10 = self.pi10.copy()
         self.pfa = np.full(nf, 0.5)
         self.pmd = np.full(nf, 0.5)
 
@@ -86,4 +100,22 @@ class AdaptiveTransition:
             self.pfa[j] = min(max(pfa, 0.0), 1.0) if pfa == pfa else 0.5   # NaN -> no evidence
             self.pmd[j] = min(max(pmd, 0.0), 1.0) if pmd == pmd else 0.5
         self.pi01 = 1.0 - phi_fa(self.pfa)
-        self.pi10 = 1.0 - phi_md(self.pmd)
+        self.pi10 = self.model_pi10.copy() if self.proposal else 1.0 - phi_md(self.pmd)
+
+    def log_weight_correction(self, before: np.ndarray, after: np.ndarray,
+                              available: np.ndarray) -> np.ndarray | None:
+        """(N,) log P_model / P_proposal of each particle's mode moves this step, or None (thesis mode).
+
+        before, after (nf, N) bool modes around the jump; available (nf,) bool: faults that could
+        jump this step (the others moved under neither matrix, ratio 1).
+        """
+        if not self.proposal:
+            return None
+        with np.errstate(divide="ignore"):
+            l01 = np.log(self.model_pi01) - np.log(self.pi01)
+            l00 = np.log1p(-self.model_pi01) - np.log1p(-self.pi01)
+            l10 = np.log(self.model_pi10) - np.log(self.pi10)
+            l11 = np.log1p(-self.model_pi10) - np.log1p(-self.pi10)
+        col = lambda a: np.where(available, a, 0.0)[:, None]   # noqa: E731
+        lw = np.where(before, np.where(after, col(l11), col(l10)), np.where(after, col(l01), col(l00)))
+        return lw.sum(axis=0)

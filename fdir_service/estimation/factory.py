@@ -9,8 +9,9 @@ same process model: no jitter, systematic resampling every step) and "EKF-GATE" 
     RRPF    = RPF + Kalman correction
     JMRPF   = particles + regulariser + fixed jump (+ amplitude predictor)
     RJMRPF  = JMRPF + Kalman correction
-    AJMRPF  = JMRPF with the adaptive transition matrix
+    AJMRPF  = JMRPF with the adaptive transition matrix (estimator.adaptive_transition)
     ARJMRPF = AJMRPF + Kalman correction
+    AJMRPF-thesis, ARJMRPF-thesis = the same with adaptive_transition = "thesis"
 
 Settings come from scenario.estimator and scenario.faults; the filters assume the measurement
 noise scenario.sensors.filter_sigma(). KF and IMM-KF always use the linearised model
@@ -37,7 +38,11 @@ from fdir_service.estimation.process import LinearProcess, NonlinearProcess
 from fdir_service.estimation.regularize import h_opt
 from fdir_service.scenario import Scenario
 
-PARTICLE_FILTERS = ("RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "bootstrap")
+PARTICLE_FILTERS = ("RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "AJMRPF-thesis",
+                    "ARJMRPF-thesis", "bootstrap")
+THESIS_SUFFIX = "-thesis"
+"""AJMRPF-thesis / ARJMRPF-thesis: the adaptive filters with estimator.adaptive_transition forced to
+"thesis" (eq. 6.1 as written), for side-by-side reports when a scenario selects "proposal"."""
 FILTERS = ("KF", "IMM-KF") + PARTICLE_FILTERS
 FAULT_THRESHOLD_SIGMAS = 3.0
 """Mode-free filters (KF, RPF, RRPF, bootstrap) report P(|f_j| > 3 sigma_j), sigma_j the fault's
@@ -140,17 +145,21 @@ def build_particle_filter(name: str, scenario: Scenario, rng: np.random.Generato
     common = dict(layout=layout, process=process, meas=meas, rng=rng, N=N,
                   x0_mean=_x0(scenario, layout, x0), x0_std=x0_std, q_std=q_std,
                   fault_threshold=FAULT_THRESHOLD_SIGMAS * amp.sigma)
+    proposal = est.adaptive_transition == "proposal"
+    base = name
+    if name.endswith(THESIS_SUFFIX):
+        base, proposal = name[: -len(THESIS_SUFFIX)], False
     if name == "bootstrap":
         return ParticleFilter(name, resampler="systematic", always_resample=True, h=None, **common)
-    jm = name in ("JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF")
-    correction = name in ("RRPF", "RJMRPF", "ARJMRPF")
+    jm = base in ("JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF")
+    correction = base in ("RRPF", "RJMRPF", "ARJMRPF")
     transition = None
-    if name in ("JMRPF", "RJMRPF"):
+    if base in ("JMRPF", "RJMRPF"):
         transition = FixedTransition(est.pi01, est.pi10, layout.nf)
-    elif name in ("AJMRPF", "ARJMRPF"):
+    elif base in ("AJMRPF", "ARJMRPF"):
         transition = AdaptiveTransition(amp.sigma, est.saddlepoint_window, roc=roc,
-                                        pi01=est.pi01, pi10=est.pi10)
-    elif name not in ("RPF", "RRPF"):
+                                        pi01=est.pi01, pi10=est.pi10, proposal=proposal)
+    elif base not in ("RPF", "RRPF"):
         raise ValueError(f"unknown particle filter {name!r}; expected one of {PARTICLE_FILTERS}")
     prior_width = None
     if jm and est.sentinel_weighting == "prior":

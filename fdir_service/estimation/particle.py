@@ -12,6 +12,9 @@ One class, `ParticleFilter`, configured with:
 - a regulariser (`regularize`, Epanechnikov, h = k h_opt; None: no jitter); jitter_per_mode=True
   uses one kernel per mode pattern with a floor on the mode-1 fault variance
   (`regularize.regularize_per_mode`, scenario `estimator.jitter = "per_mode"`);
+- an adaptive jump strategy built with proposal=True (scenario `estimator.adaptive_transition =
+  "proposal"`) adds its `log_weight_correction` (model / proposal transition probability) to the
+  log-likelihood of every particle;
 - sentinel_prior_width (nf,) = 2 amplitude_max per sensor fault: the "prior" sentinel weighting
   (scenario `estimator.sentinel_weighting = "prior"`): sentinels drawn from N(A, s^2) and
   weighted by p(f | jump) / q(f), see `_spread_sentinels` and docs/estimation.md.
@@ -240,6 +243,7 @@ class ParticleFilter:
         yv = np.asarray(y, dtype=float)[mask]
         u = np.asarray(u, dtype=float)
         X = self._predict(u)
+        move_lw = None
         if self.transition is not None:
             innov = yv[:, None] - mm.H @ X
             A, avail = self.amplitude.predict(X, innov, mask)
@@ -248,8 +252,11 @@ class ParticleFilter:
             v = self.rng.random((self.nf, self.N))
             F = X[N_AIRFRAME:]
             self.last_amplitude = A
+            before = self.modes.copy() if getattr(self.transition, "proposal", False) else None
             self.sentinels = jump(F, self.modes, A, avail, self.transition.pi01,
                                   self.transition.pi10, v, self.forced_zero, self.rejump)
+            if before is not None:
+                move_lw = self.transition.log_weight_correction(before, self.modes, avail)
         bonus = None
         if self._prior_logc is not None and mm.m > 0:
             bonus = self._spread_sentinels(X, mask)
@@ -265,6 +272,8 @@ class ParticleFilter:
             ll = self._loglik(X, yv, mm)
         if bonus is not None:
             ll += bonus
+        if move_lw is not None:
+            ll += move_lw
         xm = X @ self.w
         if not (np.isfinite(xm).all() and np.abs(xm).max() < STATE_BOUND):
             # a particle left the finite numbers (or the physically possible: |x| >= 1e6 SI) drop it
