@@ -40,7 +40,13 @@ def add_parser(subparsers) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from sim_bridge.campaign import run_campaign
-    from sim_bridge.report import check_orderings, combined_markdown, publish, write_report
+    from sim_bridge.report import (
+        REFERENCE_ORDERINGS,
+        check_orderings,
+        combined_markdown,
+        publish,
+        write_report,
+    )
 
     if args.runs < 1:
         raise ConfigError(f"--runs: expected a positive integer, got {args.runs}")
@@ -78,6 +84,9 @@ def main(args: argparse.Namespace) -> int:
         rel = " < " if o["strict"] else " <= "
         print(f"ordering {o['scenario']} {o['quantity']}: {rel.join(o['chain'])}: "
               f"{'holds' if o['holds'] else 'FAILS'} ({json.dumps(o['values'])})")
+    for o in check_orderings(results, REFERENCE_ORDERINGS):
+        print(f"reference {o['scenario']} {o['quantity']}: {' < '.join(o['chain'])}: "
+              f"{'holds' if o['holds'] else 'does not hold'} ({json.dumps(o['values'])})")
     if args.publish:
         for sid, out in outs.items():
             if out.name == sid:
