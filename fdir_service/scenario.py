@@ -155,6 +155,9 @@ class EstimatorConfig:
                                          # from Pmd drive the jump) | "proposal": the Pfa-driven pi01
                                          # proposes sentinels, importance-weighted against pi01/pi10
                                          # above, and pi10 stays the fixed one (docs/estimation.md)
+    actuator_sentinel: str = "thesis"    # "thesis" (Alg. 4.1: only the fault entry jumps) |
+                                         # "consistent": an actuator-fault jump also applies its last
+                                         # frame's effect B_a dF to the airframe state (eq. 4.13)
     imm: ImmConfig = field(default_factory=ImmConfig)
     gating: GatingConfig = field(default_factory=GatingConfig)
 
@@ -344,6 +347,8 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
         jitter=e.take("jitter", "string", "global", choices=("global", "per_mode")),
         adaptive_transition=e.take("adaptive_transition", "string", "thesis",
                                    choices=("thesis", "proposal")),
+        actuator_sentinel=e.take("actuator_sentinel", "string", "thesis",
+                                 choices=("thesis", "consistent")),
         imm=imm, gating=gating,
     )
     e.finish()

@@ -152,6 +152,28 @@ def test_actuator_sentinels_land_near_the_true_elevator_fault():
     assert np.degrees(np.std(est[220:])) < 2.0
 
 
+
+def test_consistent_actuator_sentinels_carry_the_faults_last_frame_effect():
+    """actuator_sentinel = "consistent" (ch5c): a particle whose elevator-fault entry jumps by dF
+    also gets B_a dF on its airframe state (eq. 4.13: A is the fault that acted over the last
+    frame), so at the first faulty frame (10.05 s, a -21 deg/s pitch-rate response) the elevator
+    explains the data, not a pitch-rate-gyro fault. With "thesis" the q-gyro takes that frame."""
+    sc = load_scenario("ch5c")
+    assert sc.estimator.actuator_sentinel == "consistent"
+    run = generate(sc, np.random.default_rng(1), 202)
+    results = {}
+    for mode in ("consistent", "thesis"):
+        s2 = dataclasses.replace(sc, estimator=dataclasses.replace(sc.estimator, actuator_sentinel=mode))
+        f = build_filter("RJMRPF", s2, np.random.default_rng(2))
+        for k in range(202):                     # up to t = 10.05 s, the first frame the fault shows
+            out = f.step(run.t[k], run.y[k], run.mask[k], run.u[k])
+        results[mode] = out
+    c, t = results["consistent"], results["thesis"]
+    assert np.degrees(c.fault_estimate[0]) == pytest.approx(10.0, abs=2.0)   # elevator found
+    assert abs(np.degrees(c.fault_estimate[1])) < 5.0                      # no big false q fault
+    assert np.degrees(t.fault_estimate[1]) < -10.0                           # thesis: q takes it
+    assert abs(np.degrees(t.fault_estimate[0])) < 2.0
+
 def test_sensor_sentinels_land_at_the_measured_offset():
     sc = load_scenario("ch5a")    # theta +5 deg from 10 s
     run = generate(sc, np.random.default_rng(3), 200)

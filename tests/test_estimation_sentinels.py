@@ -95,6 +95,14 @@ def test_scenario_keys_validated():
     doc["estimator"]["jitter"] = "local"
     with pytest.raises(ConfigError, match="jitter"):
         parse_scenario(doc)
+    doc = _doc("ch5c")
+    doc["estimator"]["actuator_sentinel"] = "yes"
+    with pytest.raises(ConfigError, match="actuator_sentinel"):
+        parse_scenario(doc)
+    doc = _doc("ch6")
+    doc["estimator"]["adaptive_transition"] = "bayes"
+    with pytest.raises(ConfigError, match="adaptive_transition"):
+        parse_scenario(doc)
     doc = _doc("ch4")
     del doc["faults"][1]["amplitude_max"]
     with pytest.raises(ConfigError, match="amplitude_max"):

@@ -169,7 +169,8 @@ def build_particle_filter(name: str, scenario: Scenario, rng: np.random.Generato
                           correction=correction, resampler=est.resampler,
                           threshold=est.resample_threshold, h=h, shrink=not jm, mode0=est.mode0,
                           sentinel_prior_width=prior_width,
-                          jitter_per_mode=jm and est.jitter == "per_mode", **common)
+                          jitter_per_mode=jm and est.jitter == "per_mode",
+                          actuator_jump_state=jm and est.actuator_sentinel == "consistent", **common)
 
 
 def build_filter(name: str, scenario: Scenario, rng: np.random.Generator,

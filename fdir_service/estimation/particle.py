@@ -15,6 +15,9 @@ One class, `ParticleFilter`, configured with:
 - an adaptive jump strategy built with proposal=True (scenario `estimator.adaptive_transition =
   "proposal"`) adds its `log_weight_correction` (model / proposal transition probability) to the
   log-likelihood of every particle;
+- actuator_jump_state=True (scenario `estimator.actuator_sentinel = "consistent"`): an actuator
+  fault entry that jumps by dF also moves the particle's airframe state by B_a dF (the amplitude
+  is the fault that acted over the last frame, eq. 4.13);
 - sentinel_prior_width (nf,) = 2 amplitude_max per sensor fault: the "prior" sentinel weighting
   (scenario `estimator.sentinel_weighting = "prior"`): sentinels drawn from N(A, s^2) and
   weighted by p(f | jump) / q(f), see `_spread_sentinels` and docs/estimation.md.
@@ -58,7 +61,7 @@ class ParticleFilter:
                  always_resample: bool = False, h: float | None = None, shrink: bool = False,
                  mode0: str = "forced_zero", fault_threshold: np.ndarray | None = None,
                  rejump: bool = False, sentinel_prior_width: np.ndarray | None = None,
-                 jitter_per_mode: bool = False) -> None:
+                 jitter_per_mode: bool = False, actuator_jump_state: bool = False) -> None:
         if mode0 not in MODE0_HANDLING:
             raise ValueError(f"mode0 must be one of {MODE0_HANDLING}, got {mode0!r}")
         if transition is not None and amplitude is None:
@@ -89,6 +92,12 @@ class ParticleFilter:
         self.fault_threshold = (np.full(self.nf, np.inf) if fault_threshold is None
                                 else np.asarray(fault_threshold, dtype=float))
         self.rejump = bool(rejump)
+        self._act = None
+        if actuator_jump_state and transition is not None:
+            act = np.flatnonzero(layout.actuator_input >= 0)
+            if act.size:
+                self._act = act
+                self._B_act = np.asarray(process.B_actuator, dtype=float)[:, act]
         self.jitter_per_mode = bool(jitter_per_mode) and transition is not None and self.nf > 0
         self._fault_var_floor = None
         if self.jitter_per_mode:
@@ -253,8 +262,15 @@ class ParticleFilter:
             F = X[N_AIRFRAME:]
             self.last_amplitude = A
             before = self.modes.copy() if getattr(self.transition, "proposal", False) else None
+            F_act = F[self._act].copy() if self._act is not None else None
             self.sentinels = jump(F, self.modes, A, avail, self.transition.pi01,
                                   self.transition.pi10, v, self.forced_zero, self.rejump)
+            if F_act is not None:
+                # the amplitude A of an actuator fault is the fault that acted over the last frame
+                # (eq. 4.13): a particle whose fault entry jumped gets that frame's effect on its
+                # airframe state too, so it is weighted on this frame's data as it stands
+                dF = F[self._act] - F_act
+                X[:N_AIRFRAME] += self._B_act @ dF
             if before is not None:
                 move_lw = self.transition.log_weight_correction(before, self.modes, avail)
         bonus = None
