@@ -11,7 +11,6 @@ fault's `unit`.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +23,7 @@ from fdir_service.tomltable import (
     POSITIVE,
     UNIT_INTERVAL,
     TomlTable,
+    load_toml,
 )
 
 MEASUREMENTS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q")
@@ -365,13 +365,7 @@ def parse_scenario(doc: dict[str, Any], source: str = "<scenario>") -> Scenario:
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load and validate a scenario by id (`ch4`) or path."""
     path = scenario_path(name_or_path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except FileNotFoundError as exc:
-        raise ConfigError(f"{path}: no such scenario file") from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
+    doc = load_toml(path, "scenario file")
     try:
         return parse_scenario(doc, str(path))
     except ConfigError as exc:

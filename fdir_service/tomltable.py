@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import math
 import re
+import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 from fdir_service.errors import ConfigError
@@ -145,3 +147,15 @@ class TomlTable:
         """Raise if any key was not consumed, naming them all."""
         if self._data:
             raise ConfigError("unknown key(s): " + ", ".join(self.key(k) for k in sorted(self._data)))
+
+
+def load_toml(path: str | Path, what: str) -> dict[str, Any]:
+    """Parse the TOML file at `path`; a missing file or bad TOML raises ConfigError naming the path
+    and `what` it should be ("airframe file", "scenario file")."""
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError as exc:
+        raise ConfigError(f"{path}: no such {what}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from exc

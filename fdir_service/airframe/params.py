@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, fields
 from pathlib import Path
 
 from fdir_service.errors import ConfigError
 from fdir_service.paths import config_dir
+from fdir_service.tomltable import load_toml
 
 
 @dataclass(frozen=True)
@@ -60,13 +60,7 @@ _POSITIVE = {"m", "Jy", "S", "b", "c", "S_prop", "e", "rho", "g", "k_motor"}
 def load_airframe(path: str | Path | None = None) -> AirframeParams:
     """Read an airframe TOML (sections are only grouping); unknown keys and bad values fail."""
     path = Path(path) if path is not None else config_dir() / "aerosonde.toml"
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except FileNotFoundError as exc:
-        raise ConfigError(f"{path}: airframe file not found") from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
+    doc = load_toml(path, "airframe file")
     known = {f.name for f in fields(AirframeParams)}
     values: dict[str, float] = {}
     for section, table in doc.items():
