@@ -164,6 +164,8 @@ def _run_job(job: Job) -> RunResult:
     simulator = job.simulator or simulate
     seed = sim_seed(job.seed, job.run)
     filt = builder(job.filter, sc, filter_rng(job.seed, job.run, job.filter), job.particles)
+    if hasattr(filt, "output_covariance"):   # a RunResult keeps no covariance: skip computing it
+        filt.output_covariance = False
     nav = _TimedNav(filt, sc.dt_s)
     traj = simulator(sc, seed, nav=nav)
     outs = traj.outputs

@@ -76,9 +76,9 @@ class SensorSuite:
             self._advance_gauss_markov(t)
             y[self.gnss_row] += self.gnss_error_m
         if self.baro_row is not None:
-            p = pressure_from_altitude(y[self.baro_row])
+            p = pressure_from_altitude(float(y[self.baro_row]))
             self.last_static_pressure_pa = p
             y[self.baro_row] = altitude_from_pressure(p)
         else:
-            self.last_static_pressure_pa = pressure_from_altitude(-z_true[0])
+            self.last_static_pressure_pa = pressure_from_altitude(-float(z_true[0]))
         return y

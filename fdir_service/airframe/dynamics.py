@@ -12,6 +12,7 @@ scalars costs ~20x the arithmetic. They agree with the vectorised versions to ~1
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -81,7 +82,7 @@ def derivatives_rows(ub, wb, th, q, de, dt, p: AirframeParams):
     Same equations as `derivatives` (agrees to ~1e-15 relative), arranged for speed: cos/sin of
     alpha as u/Va, w/Va; the stall blend with one exponential (e_minus e_plus = e^{2 M alpha0}).
     Arguments broadcast together; returns (p_d', u', w', theta', q') with their common shape
-    (np.float64 scalars for scalar arguments). The arithmetic is `derivatives_rows_into`'s.
+    (np.float64 scalars for scalar arguments). The arithmetic is `derivatives_block_into`'s.
     """
     shape = np.broadcast_shapes(np.shape(ub), np.shape(wb), np.shape(th), np.shape(q),
                                 np.shape(de), np.shape(dt))
@@ -94,8 +95,9 @@ def derivatives_rows(ub, wb, th, q, de, dt, p: AirframeParams):
         return float(v) if np.ndim(v) == 0 else row(v)
 
     n = int(np.prod(full))
-    out = derivatives_rows_into(np.empty((5, n)), np.empty((12, n)), row(ub), row(wb), row(th),
-                                row(q), inp(de), inp(dt), p)
+    Z = np.zeros((5, n))
+    Z[1], Z[2], Z[3], Z[4] = row(ub), row(wb), row(th), row(q)
+    out = derivatives_block_into(np.empty((5, n)), np.empty((SCRATCH_ROWS, n)), Z, inp(de), inp(dt), p)
     if shape == ():
         return tuple(np.float64(r[0]) for r in out)
     return tuple(r.reshape(shape) for r in out)
@@ -128,43 +130,69 @@ def derivatives_scalar(ub: float, wb: float, th: float, q: float, de: float, dt:
     Same equations and operation order as `derivatives_rows` (agrees to ~1e-15 relative; libm
     instead of numpy's exp/atan2/sin/cos); ~15x faster than the numpy version on a single state.
     """
+    return _scalar_rhs(p)(ub, wb, th, q, de, dt)
+
+
+_SCALAR: dict[int, tuple[AirframeParams, Callable]] = {}
+
+
+def _scalar_rhs(p: AirframeParams) -> Callable:
+    """`derivatives_scalar` with p's constants bound as closure variables (cached by identity):
+    the simulator's truth calls it four times a frame, and the attribute look-ups of ~20
+    parameters cost a third of the arithmetic."""
+    hit = _SCALAR.get(id(p))
+    if hit is not None and hit[0] is p:
+        return hit[1]
     k = _consts(p)
-    va2 = ub * ub + wb * wb
-    va = math.sqrt(va2)
-    inv_va = 1.0 / (va if va > 1e-3 else 1e-3)
-    alpha = math.atan2(wb, ub)
-    if va < 1e-3:  # below 1 mm/s: exact cos/sin of atan2 (atan2(0, 0) = 0)
-        ca = math.cos(alpha)
-        sa = math.sin(alpha)
-    else:
-        ca = ub * inv_va
-        sa = wb * inv_va
-    e_minus = math.exp((alpha - p.alpha0) * -p.M)
-    s1 = k.exp_2m_a0 / e_minus + e_minus + 1.0
-    sigma = s1 / (s1 + k.exp_2m_a0)
-    cl_lin = alpha * p.C_La + p.C_L0
-    lift = (abs(sa) * sa * ca * 2.0 - cl_lin) * sigma + cl_lin
-    drag = cl_lin * cl_lin * k.cd_k + p.C_Dp
-    qc = q * inv_va * k.c2
-    if p.C_Lq:
-        lift = lift + p.C_Lq * qc
-    if p.C_Lde:
-        lift = lift + p.C_Lde * de
-    if p.C_Dq:
-        drag = drag + p.C_Dq * qc
-    if p.C_Dde:
-        drag = drag + p.C_Dde * de
-    qbar_m = va2 * k.qbar_m
-    fx = (lift * sa - drag * ca) * qbar_m
-    fz = (drag * sa + lift * ca) * qbar_m
-    sth = math.sin(th)
-    cth = math.cos(th)
-    d_pd = cth * wb - sth * ub
-    d_u = va2 * (-k.thrust_k) + k.thrust_k * k.kmotor2 * dt * dt - p.g * sth + fx - q * wb
-    d_w = q * ub + p.g * cth - fz
-    mom = alpha * p.C_ma + p.C_m0 + p.C_mq * qc + p.C_mde * de
-    d_q = va2 * k.mom_k * mom
-    return d_pd, d_u, d_w, q, d_q
+    alpha0, neg_m, e2m = p.alpha0, -p.M, k.exp_2m_a0
+    c_la, c_l0, c_lq, c_lde = p.C_La, p.C_L0, p.C_Lq, p.C_Lde
+    c_dp, c_dq, c_dde, cd_k = p.C_Dp, p.C_Dq, p.C_Dde, k.cd_k
+    c2, qbar_k, neg_thrust, thrust_km2 = k.c2, k.qbar_m, -k.thrust_k, k.thrust_k * k.kmotor2
+    g, c_ma, c_m0, c_mq, c_mde, mom_k = p.g, p.C_ma, p.C_m0, p.C_mq, p.C_mde, k.mom_k
+    sqrt, atan2, exp, sin, cos = math.sqrt, math.atan2, math.exp, math.sin, math.cos
+
+    def rhs(ub: float, wb: float, th: float, q: float, de: float, dt: float):
+        va2 = ub * ub + wb * wb
+        va = sqrt(va2)
+        inv_va = 1.0 / (va if va > 1e-3 else 1e-3)
+        alpha = atan2(wb, ub)
+        if va < 1e-3:  # below 1 mm/s: exact cos/sin of atan2 (atan2(0, 0) = 0)
+            ca = cos(alpha)
+            sa = sin(alpha)
+        else:
+            ca = ub * inv_va
+            sa = wb * inv_va
+        e_minus = exp((alpha - alpha0) * neg_m)
+        s1 = e2m / e_minus + e_minus + 1.0
+        sigma = s1 / (s1 + e2m)
+        cl_lin = alpha * c_la + c_l0
+        lift = (abs(sa) * sa * ca * 2.0 - cl_lin) * sigma + cl_lin
+        drag = cl_lin * cl_lin * cd_k + c_dp
+        qc = q * inv_va * c2
+        if c_lq:
+            lift = lift + c_lq * qc
+        if c_lde:
+            lift = lift + c_lde * de
+        if c_dq:
+            drag = drag + c_dq * qc
+        if c_dde:
+            drag = drag + c_dde * de
+        qbar_m = va2 * qbar_k
+        fx = (lift * sa - drag * ca) * qbar_m
+        fz = (drag * sa + lift * ca) * qbar_m
+        sth = sin(th)
+        cth = cos(th)
+        d_pd = cth * wb - sth * ub
+        d_u = va2 * neg_thrust + thrust_km2 * dt * dt - g * sth + fx - q * wb
+        d_w = q * ub + g * cth - fz
+        mom = alpha * c_ma + c_m0 + c_mq * qc + c_mde * de
+        d_q = va2 * mom_k * mom
+        return d_pd, d_u, d_w, q, d_q
+
+    if len(_SCALAR) > 64:
+        _SCALAR.clear()
+    _SCALAR[id(p)] = (p, rhs)
+    return rhs
 
 
 def rk4_step_scalar(z, u, dt: float, p: AirframeParams) -> tuple[float, float, float, float, float]:
@@ -172,16 +200,14 @@ def rk4_step_scalar(z, u, dt: float, p: AirframeParams) -> tuple[float, float, f
 
     Returns the new state as a 5-tuple of floats; equal to `rk4_step` to ~1e-15 relative.
     """
+    f = _scalar_rhs(p)
     pd, ub, wb, th, q = (float(v) for v in z)
     de, dtl = float(u[0]), float(u[1])
     h = 0.5 * dt
-    a0, a1, a2, a3, a4 = derivatives_scalar(ub, wb, th, q, de, dtl, p)
-    b0, b1, b2, b3, b4 = derivatives_scalar(ub + h * a1, wb + h * a2, th + h * a3, q + h * a4,
-                                            de, dtl, p)
-    c0, c1, c2, c3, c4 = derivatives_scalar(ub + h * b1, wb + h * b2, th + h * b3, q + h * b4,
-                                            de, dtl, p)
-    d0, d1, d2, d3, d4 = derivatives_scalar(ub + dt * c1, wb + dt * c2, th + dt * c3, q + dt * c4,
-                                            de, dtl, p)
+    a0, a1, a2, a3, a4 = f(ub, wb, th, q, de, dtl)
+    b0, b1, b2, b3, b4 = f(ub + h * a1, wb + h * a2, th + h * a3, q + h * a4, de, dtl)
+    c0, c1, c2, c3, c4 = f(ub + h * b1, wb + h * b2, th + h * b3, q + h * b4, de, dtl)
+    d0, d1, d2, d3, d4 = f(ub + dt * c1, wb + dt * c2, th + dt * c3, q + dt * c4, de, dtl)
     s = dt / 6.0
     return (pd + s * (a0 + 2.0 * b0 + 2.0 * c0 + d0),
             ub + s * (a1 + 2.0 * b1 + 2.0 * c1 + d1),
@@ -190,17 +216,27 @@ def rk4_step_scalar(z, u, dt: float, p: AirframeParams) -> tuple[float, float, f
             q + s * (a4 + 2.0 * b4 + 2.0 * c4 + d4))
 
 
-def derivatives_rows_into(out: np.ndarray, tmp: np.ndarray, ub: np.ndarray, wb: np.ndarray,
-                          th: np.ndarray, q: np.ndarray, de, dt, p: AirframeParams) -> np.ndarray:
-    """dz/dt written into out (5, N), with scratch rows tmp (>= 12, N); returns out.
+SCRATCH_ROWS = 13
+"""Work rows `derivatives_block_into` needs in its scratch array (SCRATCH_ROWS, N)."""
 
-    ub, wb, th, q: float (N,) rows; de, dt: floats or (N,) rows. In-place numpy arithmetic (no
-    per-call temporaries): the particle filters' process model calls it once per step with
-    reused buffers (NonlinearProcess); `derivatives_rows` wraps it for arbitrary shapes.
+
+def derivatives_block_into(out: np.ndarray, tmp: np.ndarray, Z: np.ndarray, de, dt,
+                           p: AirframeParams) -> np.ndarray:
+    """dz/dt written into out (5, N) for the states Z (5, N) (rows p_d, u, w, theta, q); returns out.
+
+    tmp (>= SCRATCH_ROWS, N): scratch rows; de, dt: floats or (N,) rows. In-place numpy
+    arithmetic (no per-call temporaries); the products of equal-shaped row pairs, (u, w)^2,
+    (sin theta, cos theta) (u, w) and g (sin theta, cos theta), run as one (2, N) call each (each
+    element gets the same operations: the results do not depend on the grouping; a broadcast
+    (2, N) x (N,) product would cost more than two row calls).
+    The particle filters' process model calls it once per step with reused buffers
+    (NonlinearProcess); `derivatives_rows` wraps it for arbitrary shapes.
     """
     k = _consts(p)
-    va2 = np.multiply(ub, ub, out=tmp[0])
-    va2 += np.multiply(wb, wb, out=tmp[1])
+    uw = Z[1:3]
+    ub, wb, th, q = Z[1], Z[2], Z[3], Z[4]
+    np.multiply(uw, uw, out=tmp[0:2])
+    va2 = np.add(tmp[0], tmp[1], out=tmp[0])
     va = np.sqrt(va2, out=tmp[1])
     inv_va = np.maximum(va, 1e-3, out=tmp[2])
     np.divide(1.0, inv_va, out=inv_va)
@@ -209,8 +245,9 @@ def derivatives_rows_into(out: np.ndarray, tmp: np.ndarray, ub: np.ndarray, wb: 
     sa = np.multiply(wb, inv_va, out=tmp[5])
     # (np.min without its wrapper) below 1 mm/s: exact cos/sin of atan2 (atan2(0, 0) = 0)
     if np.minimum.reduce(va) < 1e-3:
-        ca = np.where(va < 1e-3, np.cos(alpha), ca)
-        sa = np.where(va < 1e-3, np.sin(alpha), sa)
+        slow = va < 1e-3
+        np.copyto(ca, np.cos(alpha), where=slow)
+        np.copyto(sa, np.sin(alpha), where=slow)
     e_minus = np.subtract(alpha, p.alpha0, out=tmp[6])
     e_minus *= -p.M
     np.exp(e_minus, out=e_minus)
@@ -221,52 +258,52 @@ def derivatives_rows_into(out: np.ndarray, tmp: np.ndarray, ub: np.ndarray, wb: 
     np.divide(s1, sigma, out=sigma)
     cl_lin = np.multiply(alpha, p.C_La, out=tmp[7])
     cl_lin += p.C_L0
-    cl = np.abs(sa, out=tmp[8])
-    cl *= sa
-    cl *= ca
-    cl *= 2.0
-    cl -= cl_lin
-    cl *= sigma
-    cl += cl_lin
-    cd = np.multiply(cl_lin, cl_lin, out=tmp[6])
-    cd *= k.cd_k
-    cd += p.C_Dp
+    lift = np.abs(sa, out=tmp[8])
+    lift *= sa
+    lift *= ca
+    lift *= 2.0
+    lift -= cl_lin
+    lift *= sigma
+    lift += cl_lin
+    drag = np.multiply(cl_lin, cl_lin, out=tmp[9])
+    drag *= k.cd_k
+    drag += p.C_Dp
     qc = np.multiply(q, inv_va, out=tmp[2])
     qc *= k.c2
-    lift = cl
     if p.C_Lq:
-        lift = lift + p.C_Lq * qc
+        lift += p.C_Lq * qc
     if p.C_Lde:
-        lift = lift + p.C_Lde * de
-    drag = cd
+        lift += p.C_Lde * de
     if p.C_Dq:
-        drag = drag + p.C_Dq * qc
+        drag += p.C_Dq * qc
     if p.C_Dde:
-        drag = drag + p.C_Dde * de
+        drag += p.C_Dde * de
     qbar_m = np.multiply(va2, k.qbar_m, out=tmp[1])
     t = tmp[11]
-    fx = np.multiply(lift, sa, out=tmp[9])
+    fx = np.multiply(lift, sa, out=tmp[10])
     fx -= np.multiply(drag, ca, out=t)
     fx *= qbar_m
-    fz = np.multiply(drag, sa, out=tmp[10])
+    fz = np.multiply(drag, sa, out=tmp[12])
     fz += np.multiply(lift, ca, out=t)
     fz *= qbar_m
-    sth = np.sin(th, out=tmp[4])
-    cth = np.cos(th, out=tmp[5])
-    d_pd = np.multiply(cth, wb, out=out[0])
-    d_pd -= np.multiply(sth, ub, out=t)
+    sc = tmp[4:6]
+    np.sin(th, out=sc[0])
+    np.cos(th, out=sc[1])
+    scuw = np.multiply(sc, uw, out=tmp[6:8])              # (sin th u, cos th w)
+    np.subtract(scuw[1], scuw[0], out=out[0])             # p_d' = cos th w - sin th u
+    gsc = np.multiply(p.g, sc, out=tmp[8:10])             # (g sin th, g cos th)
     d_u = np.multiply(va2, -k.thrust_k, out=out[1])
     d_u += k.thrust_k * k.kmotor2 * dt * dt
-    d_u -= np.multiply(p.g, sth, out=t)
+    d_u -= gsc[0]
     d_u += fx
     d_u -= np.multiply(q, wb, out=t)
     d_w = np.multiply(q, ub, out=out[2])
-    d_w += np.multiply(p.g, cth, out=t)
+    d_w += gsc[1]
     d_w -= fz
     out[3] = q
-    mom = np.multiply(alpha, p.C_ma, out=tmp[8])
+    mom = np.multiply(alpha, p.C_ma, out=tmp[6])
     mom += p.C_m0
-    mom += np.multiply(p.C_mq, qc, out=t)
+    mom += np.multiply(p.C_mq, qc, out=tmp[7])
     mom += p.C_mde * de
     d_q = np.multiply(va2, k.mom_k, out=out[4])
     d_q *= mom

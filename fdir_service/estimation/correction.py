@@ -34,9 +34,13 @@ def _inv(S: np.ndarray) -> np.ndarray:
 def weighted_mean_cov(X: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Weighted mean (n,) and covariance (n, n) of a state-major cloud X (n, N), weights w (N,)."""
     mean = X @ w
+    return mean, weighted_cov(X, w, mean)
+
+
+def weighted_cov(X: np.ndarray, w: np.ndarray, mean: np.ndarray) -> np.ndarray:
+    """Weighted covariance (n, n) of a cloud X (n, N) with weights w (N,) about its mean (n,) = X @ w."""
     dX = X - mean[:, None]
-    cov = (dX * w) @ dX.T
-    return mean, cov
+    return (dX * w) @ dX.T
 
 
 def kalman_gain(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

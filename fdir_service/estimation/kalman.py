@@ -53,6 +53,9 @@ class KalmanFilter:
         self.fault_threshold = (np.full(layout.nf, np.inf) if fault_threshold is None
                                 else np.asarray(fault_threshold, dtype=float))
         self._I = np.eye(layout.n)
+        self._rows: dict[bytes, tuple] = {}
+        """mask -> (H[mask], R[mask][:, mask], the rows (m_r,), np.ix_ of them): the partial updates'
+        constant parts (meas is the filter's fixed model)."""
 
     # -- the two halves of a step (the IMM and the gating detector call them separately)
     def predict(self, u: np.ndarray) -> None:
@@ -75,8 +78,14 @@ class KalmanFilter:
             self._nu = self._S = None
             return
         else:
-            Hr, Rr = H[mask], R[np.ix_(mask, mask)]
-            S, PHt = S_all[np.ix_(mask, mask)], PHt_all[:, mask]
+            key = mask.tobytes()
+            rows = self._rows.get(key)
+            if rows is None:
+                idx = np.flatnonzero(mask)
+                ix = np.ix_(idx, idx)
+                rows = self._rows[key] = (H[idx], R[ix], idx, ix)
+            Hr, Rr, idx, ix = rows
+            S, PHt = S_all[ix], PHt_all[:, idx]
         nu = np.asarray(y, dtype=float)[mask] - Hr @ self.x
         nu_all[mask] = nu
         S_inv = np.linalg.inv(S)

@@ -34,7 +34,7 @@ import numpy as np
 
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.base import StepOutput
-from fdir_service.estimation.correction import gaussian_loglik, kalman_gain, weighted_mean_cov
+from fdir_service.estimation.correction import gaussian_loglik, kalman_gain, weighted_cov, weighted_mean_cov
 from fdir_service.estimation.jump import MODE0_HANDLING, jump
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
@@ -112,6 +112,13 @@ class ParticleFilter:
             c[layout.sensor_row < 0] = np.nan
             if np.isfinite(c).any():
                 self._prior_logc = c
+        self._sentinel_const: dict[int, tuple[float, float]] = {}
+        """fault j -> (s_j, log c_j + log s_j) of the "prior" weighting (constants of the model)."""
+        if self._prior_logc is not None:
+            for j, r in enumerate(layout.sensor_row.tolist()):
+                if r >= 0:
+                    sj = meas.sigma[r]
+                    self._sentinel_const[j] = (sj, self._prior_logc[j] + np.log(sj))
         self.spread_sentinels = True
         """"prior" weighting: draw sentinels from q = N(A, s^2) (True) or place them at A with the
         marginal weight sqrt(2 pi) s / L (False: q's mode, a Laplace approximation)."""
@@ -123,6 +130,9 @@ class ParticleFilter:
         self.modes = np.zeros((self.nf, self.N), dtype=bool)
         self.w = np.full(self.N, 1.0 / self.N)
         self.x_mean, self.x_cov = weighted_mean_cov(self.X, self.w)
+        self.output_covariance = True
+        """False: StepOutput.x_cov is None and `step` computes the weighted covariance `x_cov` only
+        when the (global) jitter needs it, else None; a campaign, which keeps none, turns it off."""
         self.fault_probability = np.zeros(self.nf)
         self.sentinels = np.zeros((self.nf, self.N), dtype=bool)
         """(nf, N) particles that jumped 0 -> 1 at the last step (indices before its resampling)."""
@@ -143,10 +153,9 @@ class ParticleFilter:
         noise *= self.q_std[:N_AIRFRAME]
         X[:N_AIRFRAME] += noise
         for j in range(self.nf):
-            on = self.modes[j]
-            c = int(np.count_nonzero(on))
-            if c:
-                X[N_AIRFRAME + j, on] += self.q_std[N_AIRFRAME + j, 0] * self.rng.standard_normal(c)
+            on = np.flatnonzero(self.modes[j])     # (a row view indexed by position: cheapest)
+            if on.size:
+                X[N_AIRFRAME + j][on] += self.q_std[N_AIRFRAME + j, 0] * self.rng.standard_normal(on.size)
         return X
 
     def _adapt(self, A: np.ndarray, F: np.ndarray) -> None:
@@ -198,13 +207,13 @@ class ParticleFilter:
             cols = np.flatnonzero(self.sentinels[j])
             if cols.size == 0:
                 continue
-            sj = self.meas.sigma[self.layout.sensor_row[j]]
+            sj, logc = self._sentinel_const[j]
             if self.spread_sentinels:
                 eps = self.rng.standard_normal(cols.size)
-                X[N_AIRFRAME + j, cols] += sj * eps
-                bonus[cols] += self._prior_logc[j] + np.log(sj) + 0.5 * eps * eps
+                X[N_AIRFRAME + j][cols] += sj * eps
+                bonus[cols] += logc + 0.5 * eps * eps
             else:
-                bonus[cols] += self._prior_logc[j] + np.log(sj)
+                bonus[cols] += logc
         return bonus
 
     def _loglik(self, X: np.ndarray, yv: np.ndarray, mm: MeasurementModel) -> np.ndarray:
@@ -291,7 +300,7 @@ class ParticleFilter:
         if move_lw is not None:
             ll += move_lw
         xm = X @ self.w
-        if not (np.isfinite(xm).all() and np.abs(xm).max() < STATE_BOUND):
+        if not np.abs(xm).max() < STATE_BOUND:     # also True for NaN and inf (max propagates NaN)
             # a particle left the finite numbers (or the physically possible: |x| >= 1e6 SI) drop it
             with np.errstate(invalid="ignore", over="ignore"):
                 finite = np.isfinite(X).all(axis=0) & (np.abs(X).max(axis=0) < STATE_BOUND)
@@ -313,13 +322,16 @@ class ParticleFilter:
                 w = np.full(self.N, 1.0 / self.N)
         self.w = w
         # estimate (Alg. 2.4 / 5.3)
-        self.x_mean, self.x_cov = weighted_mean_cov(self.X, w)
+        self.x_mean = self.X @ w
         if self.transition is not None:
             self.fault_probability = self.modes @ w
         else:
             self.fault_probability = (np.abs(self.X[N_AIRFRAME:]) > self.fault_threshold[:, None]) @ w
         n_eff = float(1.0 / np.dot(w, w))
         resampled = self.always_resample or n_eff < self.threshold * self.N
+        global_jitter = resampled and self.h is not None and not self.jitter_per_mode
+        self.x_cov = (weighted_cov(self.X, w, self.x_mean)
+                      if self.output_covariance or global_jitter else None)
         if resampled:
             idx = self.resample(w, self.rng)
             X_prev, modes_prev = self.X, self.modes
@@ -337,7 +349,8 @@ class ParticleFilter:
                 regularize(self.X, self.x_cov, self.h, self.rng, self.shrink)
                 if self.forced_zero:
                     self.X[N_AIRFRAME:] *= self.modes
-        out = StepOutput(t=t, x_mean=self.x_mean.copy(), x_cov=self.x_cov.copy(),
+        out = StepOutput(t=t, x_mean=self.x_mean.copy(),
+                         x_cov=self.x_cov.copy() if self.output_covariance else None,
                          fault_ids=self.fault_ids, fault_estimate=self.x_mean[N_AIRFRAME:].copy(),
                          fault_probability=np.asarray(self.fault_probability, dtype=float).copy(),
                          n_eff=n_eff, resampled=bool(resampled))

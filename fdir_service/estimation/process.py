@@ -17,12 +17,17 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import expm
 
-from fdir_service.airframe.dynamics import derivatives_rows, derivatives_rows_into
+from fdir_service.airframe.dynamics import SCRATCH_ROWS, derivatives_block_into, derivatives_rows
 from fdir_service.airframe.linearize import LinearModel, jacobians
 from fdir_service.airframe.params import AirframeParams
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 
 INTEGRATORS = ("expeuler", "euler", "heun", "rk4")
+
+
+def _row_input(a, N: int) -> bool:
+    """An input `derivatives_block_into` takes as it is: a float, or a 0-d or (N,) array."""
+    return type(a) is float or getattr(a, "shape", None) in ((), (N,))
 
 
 class LinearProcess:
@@ -62,6 +67,38 @@ class LinearProcess:
         return out
 
 
+_DISCRETISED: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _discretised(params: AirframeParams, trim_z: np.ndarray, trim_u: np.ndarray,
+                 dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(Bc (5, 2), E (10, 10)) at the trim: the input Jacobian and the augmented exponential
+    E = expm([[A dt, I dt], [0, 0]]), whose block E[:5, 5:] = Phi = int_0^dt e^{A s} ds.
+
+    Computed once per (airframe, trim, dt) in a process (~9 ms: a campaign builds three particle
+    filters per run); the arrays are shared read-only.
+    """
+    try:
+        key = (params, trim_z.tobytes(), trim_u.tobytes(), float(dt))
+        hit = _DISCRETISED.get(key)
+    except TypeError:       # an unhashable parameter set: no caching
+        key, hit = None, None
+    if hit is not None:
+        return hit
+    A, Bc = jacobians(params, trim_z, trim_u)
+    M = np.zeros((10, 10))
+    M[:5, :5] = A * dt
+    M[:5, 5:] = np.eye(5) * dt
+    E = expm(M)
+    Bc.flags.writeable = False
+    E.flags.writeable = False
+    if key is not None:
+        if len(_DISCRETISED) > 32:
+            _DISCRETISED.clear()
+        _DISCRETISED[key] = (Bc, E)
+    return Bc, E
+
+
 class NonlinearProcess:
     """The nonlinear airframe (SPEC section 2) over one frame dt, vectorised over particles."""
 
@@ -77,15 +114,10 @@ class NonlinearProcess:
         self.integrator = integrator
         self.G = layout.input_matrix()                # (2, nf)
         self._act = [(i, np.flatnonzero(self.G[i])) for i in range(2) if self.G[i].any()]
-        A, Bc = jacobians(params, np.asarray(trim_z, float), np.asarray(trim_u, float))
-        # Phi = int_0^dt e^{A s} ds from the augmented exponential [[A, I], [0, 0]].
-        M = np.zeros((10, 10))
-        M[:5, :5] = A * dt
-        M[:5, 5:] = np.eye(5) * dt
-        E = expm(M)
+        Bc, E = _discretised(params, np.asarray(trim_z, float), np.asarray(trim_u, float), dt)
         self.Phi = E[:5, 5:]                          # (5, 5)
         self.B_actuator = self.Phi @ Bc @ self.G      # (5, nf) one-frame response to each fault entry
-        self._scratch = np.empty((12, 0))             # derivatives_rows_into's work rows (12, N)
+        self._scratch = np.empty((SCRATCH_ROWS, 0))   # derivatives_block_into's work rows
 
     def _inputs(self, X: np.ndarray, u: np.ndarray) -> tuple:
         """delta_e, delta_t seen by each particle (scalars or (N,) rows): u + G f."""
@@ -101,13 +133,11 @@ class NonlinearProcess:
     def _rhs(self, Z: np.ndarray, de, dtl) -> np.ndarray:
         out = np.empty(Z.shape)
         N = Z.shape[1]
-        if Z.dtype == np.float64 and all(type(a) is float or getattr(a, "shape", None) in ((), (N,))
-                                         for a in (de, dtl)):
+        if Z.dtype == np.float64 and _row_input(de, N) and _row_input(dtl, N):
             # same arithmetic as derivatives_rows, without its temporaries (bit-identical)
             if self._scratch.shape[1] != N:
-                self._scratch = np.empty((12, N))
-            return derivatives_rows_into(out, self._scratch, Z[1], Z[2], Z[3], Z[4], de, dtl,
-                                         self.params)
+                self._scratch = np.empty((SCRATCH_ROWS, N))
+            return derivatives_block_into(out, self._scratch, Z, de, dtl, self.params)
         d = derivatives_rows(Z[1], Z[2], Z[3], Z[4], de, dtl, self.params)
         for i, r in enumerate(d):
             out[i] = r

@@ -48,6 +48,10 @@ def epanechnikov(rng: np.random.Generator, n: int, N: int) -> np.ndarray:
     return g
 
 
+_IX: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
+"""live directions -> np.ix_ of them (a handful of patterns: JMRPF mode 0 drops the fault rows)."""
+
+
 def covariance_factor(P: np.ndarray) -> np.ndarray:
     """D (n, n) with D D^T = P, lower-triangular Cholesky over the directions that carry variance.
 
@@ -56,22 +60,25 @@ def covariance_factor(P: np.ndarray) -> np.ndarray:
     V sqrt(max(lambda, 0)) is used instead.
     """
     n = P.shape[0]
-    d = np.diag(P)
-    live = d > 1e-300
-    D = np.zeros((n, n))
-    if not live.any():
-        return D
-    if live.all():
+    # the live directions as a Python list: n <= ~10, so this beats numpy's per-call overhead
+    idx = [i for i, d in enumerate(P.diagonal().tolist()) if d > 1e-300]
+    if len(idx) == n:
         L, info = dpotrf(P, lower=1, clean=1)    # LAPACK directly: numpy's wrapper costs more
         if info == 0:
             return L
-    idx = np.flatnonzero(live)
-    Pl = P[np.ix_(idx, idx)]
+    D = np.zeros((n, n))
+    if not idx:
+        return D
+    key = tuple(idx)
+    ix = _IX.get(key)
+    if ix is None:
+        ix = _IX[key] = np.ix_(idx, idx)
+    Pl = P[ix]
     Dl, info = dpotrf(Pl, lower=1, clean=1)
     if info != 0:
         lam, V = np.linalg.eigh(0.5 * (Pl + Pl.T))
         Dl = V * np.sqrt(np.maximum(lam, 0.0))
-    D[np.ix_(idx, idx)] = Dl
+    D[ix] = Dl
     return D
 
 
@@ -122,22 +129,32 @@ def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, i
     n, N = X.shape
     nf = modes_prev.shape[0]
     na = n - nf
-    code_prev = np.zeros(N, dtype=np.int64)
-    for j in range(nf):
-        code_prev |= modes_prev[j].astype(np.int64) << j
-    code_new = code_prev[idx]
+    if nf == 1:
+        code_prev = modes_prev[0].astype(np.int64)
+    else:
+        code_prev = np.zeros(N, dtype=np.int64)
+        for j in range(nf):
+            code_prev |= modes_prev[j].astype(np.int64) << j
+    code_new = np.take(code_prev, idx)
     if min_eff is None:
         min_eff = 2.0 * n
     eps = epanechnikov(rng, n, N)
     P_glob = None
-    # the patterns present after resampling, ascending (= np.unique(code_new), ~10x cheaper)
-    groups = np.flatnonzero(np.bincount(code_new)) if nf <= 16 else np.unique(code_new)
-    for g in groups:
+    # the patterns present after resampling, ascending, and their particle counts
+    if nf <= 16:
+        counts = np.bincount(code_new)
+        groups = np.flatnonzero(counts).tolist()
+        counts = counts[groups].tolist()
+    else:
+        groups, counts = np.unique(code_new, return_counts=True)
+        groups, counts = groups.tolist(), counts.tolist()
+    jitter = None            # (n, N): each column's h D_g eps, for several patterns
+    single = []              # (column, h D_g eps of it) of one-particle patterns
+    for g, count in zip(groups, counts, strict=True):
         sel_prev = code_prev == g
         wg = w_prev[sel_prev]
         W = wg.sum()
-        cols = np.flatnonzero(code_new == g)
-        on = np.array([(g >> j) & 1 for j in range(nf)], dtype=bool)
+        on = [(g >> j) & 1 for j in range(nf)]
         if W > 0 and W * W / max(np.dot(wg, wg), 1e-300) >= min_eff:
             Xg = X_prev[:, sel_prev]
             mean = Xg @ wg / W
@@ -149,9 +166,9 @@ def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, i
                 dX = X_prev - mean[:, None]
                 P_glob = (dX * w_prev) @ dX.T
             P = P_glob.copy()
-            off = na + np.flatnonzero(~on)
-            keep = np.setdiff1d(np.arange(n), off)
-            if off.size:
+            off = [na + j for j in range(nf) if not on[j]]
+            if off:
+                keep = [i for i in range(n) if i not in off]
                 Poo = P[np.ix_(off, off)]
                 Pko = P[np.ix_(keep, off)]
                 if np.all(np.diag(Poo) > 1e-300):
@@ -159,12 +176,24 @@ def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, i
                 P[off, :] = 0.0
                 P[:, off] = 0.0
         if fault_var_floor is not None:
-            for j in np.flatnonzero(on):
-                if P[na + j, na + j] < fault_var_floor[j]:
+            for j in range(nf):
+                if on[j] and P[na + j, na + j] < fault_var_floor[j]:
                     P[na + j, na + j] = fault_var_floor[j]
-        D = covariance_factor(P)
-        if groups.size == 1:      # one pattern: cols is every column (same product, no gather)
-            X += (h * D) @ eps
+        hD = h * covariance_factor(P)
+        if len(groups) == 1:      # one pattern: every column (same product, no gather)
+            X += hD @ eps
+        elif count == 1:          # a matrix-vector product: kept apart (BLAS gemv, not gemm)
+            col = np.flatnonzero(code_new == g)
+            single.append((col, hD @ eps[:, col]))
+        elif jitter is None:      # a product's column depends only on that column of eps, so
+            jitter = hD @ eps     # the full product holds every pattern's columns bit for bit
         else:
-            X[:, cols] += (h * D) @ eps[:, cols]
+            np.copyto(jitter, hD @ eps, where=code_new == g)
+    if jitter is not None:
+        for col, J in single:
+            jitter[:, col] = J
+        X += jitter
+    else:
+        for col, J in single:
+            X[:, col] += J
     return X
