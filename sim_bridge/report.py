@@ -75,8 +75,8 @@ DEPARTURES: tuple[str, ...] = (
     "sigma_x read as a white-noise density (`sigma_x_basis = \"sqrt_second\"`, ch4/ch5a/ch5b/ch6): "
     "per-step std = sigma_x sqrt(dt). It reproduces the thesis's onset columns; the per-step "
     "reading gives ~3x its pitch error.",
-    "Prior-weighted sentinels (`sentinel_weighting = \"prior\"`, ch4/ch5a/ch5c/ch6 sensor "
-    "faults): a sentinel's weight carries p(f | jump) / q(f) with a uniform amplitude prior on "
+    "Prior-weighted sentinels (`sentinel_weighting = \"prior\"`, ch4/ch5a/ch5c/ch6; ch5c's "
+    "elevator too): a sentinel's weight carries p(f | jump) / q(f) with a uniform amplitude prior on "
     "+-amplitude_max. With Alg. 4.1 as written a sentinel always fits its row exactly, so "
     "fault-free P(fault) drifts to 0.3-1.",
     "Per-mode jitter (`jitter = \"per_mode\"`, ch4/ch5a/ch5c/ch6): one kernel per mode pattern, so a "
@@ -90,7 +90,8 @@ DEPARTURES: tuple[str, ...] = (
     "AJMRPF-thesis.",
     "ch5c: actuator sentinels consistent with their amplitude (`actuator_sentinel = "
     "\"consistent\"`): a jump of the elevator fault by dF also moves the airframe state by B_a dF, "
-    "since eq. 4.13's amplitude is the fault that acted over the last frame.",
+    "since eq. 4.13's amplitude is the fault that acted over the last frame; its sentinels then take "
+    "the prior weighting as well.",
 )
 
 # Notes that apply to every comparison with the thesis's tables (shown under each goal table).

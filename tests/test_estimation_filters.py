@@ -174,6 +174,37 @@ def test_consistent_actuator_sentinels_carry_the_faults_last_frame_effect():
     assert np.degrees(t.fault_estimate[1]) < -10.0                           # thesis: q takes it
     assert abs(np.degrees(t.fault_estimate[0])) < 2.0
 
+
+def test_consistent_actuator_sentinels_take_the_prior_weighting_with_the_amplitude_sigma():
+    """With actuator_sentinel = "consistent" and faults.amplitude_max, an elevator sentinel is drawn
+    from N(A, s_a^2) (s_a the amplitude's sigma) and weighted p / q like a sensor sentinel; its
+    airframe state moves with the drawn fault (B_a s_a eps). With "thesis" it keeps Alg. 4.1's
+    weighting (an actuator sentinel could not fit the frame it is weighted on)."""
+    sc = load_scenario("ch5c")
+    assert sc.faults[0].amplitude_max == pytest.approx(np.radians(20.0))
+    f = build_filter("RJMRPF", sc, np.random.default_rng(2))
+    mask = np.ones(5, dtype=bool)
+    js, consts = f._sentinel_rows(mask)
+    assert js.tolist() == [0, 1]
+    assert consts[0, 0] == pytest.approx(f.amplitude.sigma[0])        # elevator: amplitude sigma
+    assert consts[1, 0] == pytest.approx(f.meas.sigma[4])             # q gyro: row sigma
+    assert consts[0, 1] == pytest.approx(0.5 * np.log(2 * np.pi) - np.log(np.radians(40.0))
+                                         + np.log(f.amplitude.sigma[0]))
+    # one spread: the sentinels' fault and state move together, by s_a eps and B_a s_a eps
+    f.sentinels = np.zeros((2, f.N), dtype=bool)
+    f.sentinels[0, :5] = True
+    X = f.X.copy()
+    X0 = X.copy()
+    bonus = f._spread_sentinels(X, mask)
+    d_fault = X[5, :5] - X0[5, :5]
+    np.testing.assert_allclose(X[:5, :5] - X0[:5, :5], f._B_act[:, :1] * d_fault, rtol=1e-6, atol=1e-12)
+    eps = d_fault / consts[0, 0]
+    np.testing.assert_allclose(bonus[:5], consts[0, 1] + 0.5 * eps**2)
+    assert np.all(X[:, 5:] == X0[:, 5:]) and np.all(bonus[5:] == 0.0)
+    thesis = dataclasses.replace(sc, estimator=dataclasses.replace(sc.estimator, actuator_sentinel="thesis"))
+    g = build_filter("RJMRPF", thesis, np.random.default_rng(2))
+    assert g._sentinel_rows(mask)[0].tolist() == [1]                   # q only
+
 def test_sensor_sentinels_land_at_the_measured_offset():
     sc = load_scenario("ch5a")    # theta +5 deg from 10 s
     run = generate(sc, np.random.default_rng(3), 200)

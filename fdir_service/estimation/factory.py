@@ -163,8 +163,9 @@ def build_particle_filter(name: str, scenario: Scenario, rng: np.random.Generato
         raise ValueError(f"unknown particle filter {name!r}; expected one of {PARTICLE_FILTERS}")
     prior_width = None
     if jm and est.sentinel_weighting == "prior":
-        prior_width = np.array([2.0 * f.amplitude_max if f.kind == "sensor" and f.amplitude_max
-                                else np.nan for f in scenario.faults])
+        consistent = est.actuator_sentinel == "consistent"
+        prior_width = np.array([2.0 * f.amplitude_max if f.amplitude_max and (
+            f.kind == "sensor" or consistent) else np.nan for f in scenario.faults])
     return ParticleFilter(name, transition=transition, amplitude=amp if jm else None,
                           correction=correction, resampler=est.resampler,
                           threshold=est.resample_threshold, h=h, shrink=not jm, mode0=est.mode0,

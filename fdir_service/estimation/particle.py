@@ -109,7 +109,13 @@ class ParticleFilter:
             L = np.asarray(sentinel_prior_width, dtype=float)
             c = np.where(np.isfinite(L) & (L > 0), 0.5 * np.log(2.0 * np.pi) - np.log(
                 np.where(L > 0, L, 1.0)), np.nan)
-            c[layout.sensor_row < 0] = np.nan
+            # actuator faults take the "prior" weighting only when their sentinels carry the last
+            # frame's effect (actuator_jump_state): else a sentinel cannot fit the frame it is
+            # weighted on, and p / q would only penalise it
+            act_ok = np.zeros(self.nf, dtype=bool)
+            if self._act is not None:
+                act_ok[self._act] = True
+            c[(layout.sensor_row < 0) & ~act_ok] = np.nan
             if np.isfinite(c).any():
                 self._prior_logc = c
         self._sentinel_const: dict[int, tuple[float, float]] = {}
@@ -119,6 +125,7 @@ class ParticleFilter:
                 if r >= 0:
                     sj = meas.sigma[r]
                     self._sentinel_const[j] = (sj, self._prior_logc[j] + np.log(sj))
+        self._act_index = {} if self._act is None else {int(j): k for k, j in enumerate(self._act)}
         self.spread_sentinels = True
         """"prior" weighting: draw sentinels from q = N(A, s^2) (True) or place them at A with the
         marginal weight sqrt(2 pi) s / L (False: q's mode, a Laplace approximation)."""
@@ -173,17 +180,23 @@ class ParticleFilter:
         self.transition.update(mu10, mu11)
 
     def _sentinel_rows(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(faults with prior weighting whose row arrived, their index in the reduced rows)."""
+        """(faults with prior weighting that could jump this frame, their (s_j, log c_j + log s_j)
+        as a (k, 2) array): sensor faults whose row arrived, actuator faults with an amplitude."""
         key = mask.tobytes()
         hit = self._row_index.get(key)
         if hit is None:
-            rows = np.flatnonzero(mask)
-            js, idx = [], []
+            js, consts = [], []
+            _, avail, sigma = self.amplitude.gain(mask)
             for j, r in enumerate(self.layout.sensor_row):
-                if np.isfinite(self._prior_logc[j]) and r >= 0 and mask[r]:
+                if not np.isfinite(self._prior_logc[j]):
+                    continue
+                if r >= 0 and mask[r]:
                     js.append(j)
-                    idx.append(int(np.searchsorted(rows, r)))
-            hit = (np.array(js, dtype=int), np.array(idx, dtype=int))
+                    consts.append(self._sentinel_const[j])
+                elif r < 0 and avail[j] and np.isfinite(sigma[j]):
+                    js.append(j)
+                    consts.append((float(sigma[j]), float(self._prior_logc[j] + np.log(sigma[j]))))
+            hit = (np.array(js, dtype=int), np.array(consts, dtype=float).reshape(-1, 2))
             self._row_index[key] = hit
         return hit
 
@@ -195,22 +208,26 @@ class ParticleFilter:
         appeared is uniform, p(f | jump) = 1 / L on [-amplitude_max, amplitude_max], so the
         sentinel's importance weight must carry p(f) / q(f) = sqrt(2 pi) s exp(eps^2 / 2) / L
         (f = A + s eps) on top of its likelihood, which the filter computes as for any particle.
+        An actuator fault (with actuator_jump_state) uses its amplitude's sigma for s, and its
+        sentinel's airframe state moves by B_a s eps with the fault.
         Against a mode-0 particle, a sentinel is then worth ~ 1/L against N(e; 0, s^2): it wins
         only when e^2 / s^2 > 2 log(L / (sqrt(2 pi) s)) (a GLR threshold), instead of always
         (the thesis's point mass at A fits row r exactly). Returns the (N,) log factor, or None.
         """
-        js, _ = self._sentinel_rows(mask)
+        js, consts = self._sentinel_rows(mask)
         if js.size == 0:
             return None
         bonus = np.zeros(self.N)
-        for j in js:
+        for j, (sj, logc) in zip(js.tolist(), consts.tolist(), strict=True):
             cols = np.flatnonzero(self.sentinels[j])
             if cols.size == 0:
                 continue
-            sj, logc = self._sentinel_const[j]
             if self.spread_sentinels:
                 eps = self.rng.standard_normal(cols.size)
                 X[N_AIRFRAME + j][cols] += sj * eps
+                k = self._act_index.get(j)
+                if k is not None:          # an actuator sentinel's state carries its fault's frame
+                    X[:N_AIRFRAME, cols] += self._B_act[:, k:k + 1] * (sj * eps)
                 bonus[cols] += logc + 0.5 * eps * eps
             else:
                 bonus[cols] += logc
