@@ -30,6 +30,8 @@ class FixedTransition:
     """The thesis's fixed transition matrix, the same pi01, pi10 for every fault and step."""
 
     adaptive = False
+    proposal = False
+    """Never a proposal: the jump's matrix is the model's (see `adaptive.AdaptiveTransition`)."""
 
     def __init__(self, pi01: float, pi10: float, nf: int) -> None:
         self.pi01 = np.full(nf, float(pi01))

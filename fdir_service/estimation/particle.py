@@ -118,13 +118,6 @@ class ParticleFilter:
             c[(layout.sensor_row < 0) & ~act_ok] = np.nan
             if np.isfinite(c).any():
                 self._prior_logc = c
-        self._sentinel_const: dict[int, tuple[float, float]] = {}
-        """fault j -> (s_j, log c_j + log s_j) of the "prior" weighting (constants of the model)."""
-        if self._prior_logc is not None:
-            for j, r in enumerate(layout.sensor_row.tolist()):
-                if r >= 0:
-                    sj = meas.sigma[r]
-                    self._sentinel_const[j] = (sj, self._prior_logc[j] + np.log(sj))
         self._act_index = {} if self._act is None else {int(j): k for k, j in enumerate(self._act)}
         self.spread_sentinels = True
         """"prior" weighting: draw sentinels from q = N(A, s^2) (True) or place them at A with the
@@ -186,16 +179,18 @@ class ParticleFilter:
         hit = self._row_index.get(key)
         if hit is None:
             js, consts = [], []
-            _, avail, sigma = self.amplitude.gain(mask)
-            for j, r in enumerate(self.layout.sensor_row):
+            _, avail, amp_sigma = self.amplitude.gain(mask)
+            for j, r in enumerate(self.layout.sensor_row.tolist()):
                 if not np.isfinite(self._prior_logc[j]):
                     continue
                 if r >= 0 and mask[r]:
-                    js.append(j)
-                    consts.append(self._sentinel_const[j])
-                elif r < 0 and avail[j] and np.isfinite(sigma[j]):
-                    js.append(j)
-                    consts.append((float(sigma[j]), float(self._prior_logc[j] + np.log(sigma[j]))))
+                    sj = self.meas.sigma[r]                  # sensor fault: its row's filter sigma
+                elif r < 0 and avail[j] and np.isfinite(amp_sigma[j]):
+                    sj = amp_sigma[j]                        # actuator fault: its amplitude's sigma
+                else:
+                    continue
+                js.append(j)
+                consts.append((sj, self._prior_logc[j] + np.log(sj)))
             hit = (np.array(js, dtype=int), np.array(consts, dtype=float).reshape(-1, 2))
             self._row_index[key] = hit
         return hit
@@ -287,7 +282,7 @@ class ParticleFilter:
             v = self.rng.random((self.nf, self.N))
             F = X[N_AIRFRAME:]
             self.last_amplitude = A
-            before = self.modes.copy() if getattr(self.transition, "proposal", False) else None
+            before = self.modes.copy() if self.transition.proposal else None
             F_act = F[self._act].copy() if self._act is not None else None
             self.sentinels = jump(F, self.modes, A, avail, self.transition.pi01,
                                   self.transition.pi10, v, self.forced_zero, self.rejump)
