@@ -116,6 +116,7 @@ class AdaptiveTransition:
             l00 = np.log1p(-self.model_pi01) - np.log1p(-self.pi01)
             l10 = np.log(self.model_pi10) - np.log(self.pi10)
             l11 = np.log1p(-self.model_pi10) - np.log1p(-self.pi10)
-        col = lambda a: np.where(available, a, 0.0)[:, None]   # noqa: E731
-        lw = np.where(before, np.where(after, col(l11), col(l10)), np.where(after, col(l01), col(l00)))
+        lw = np.where(before, np.where(after, l11[:, None], l10[:, None]),
+                      np.where(after, l01[:, None], l00[:, None]))
+        lw[~np.asarray(available, dtype=bool)] = 0.0
         return lw.sum(axis=0)
