@@ -17,7 +17,8 @@ import numpy as np
 class StepOutput:
     """What a filter says about one frame.
 
-    t: frame time (s); x_mean (n,), x_cov (n, n): extended-state estimate and covariance;
+    t: frame time (s); x_mean (n,), x_cov (n, n) or None: extended-state estimate and covariance
+    (None when the filter was asked not to output it, e.g. `ParticleFilter.output_covariance`);
     fault_ids (nf,); fault_estimate (nf,) SI; fault_probability (nf,) = P(mode 1);
     n_eff: effective sample size (N for KF-type filters); resampled: whether this step resampled;
     pfa, pmd (nf,) and transition (nf, 2, 2) only for adaptive filters (None otherwise).
@@ -25,7 +26,7 @@ class StepOutput:
 
     t: float
     x_mean: np.ndarray
-    x_cov: np.ndarray
+    x_cov: np.ndarray | None
     fault_ids: tuple[str, ...]
     fault_estimate: np.ndarray
     fault_probability: np.ndarray
