@@ -36,6 +36,10 @@ def free_udp_port(host: str = "127.0.0.1") -> int:
         return s.getsockname()[1]
 
 
+RCVBUF_BYTES = 4 << 20
+"""Receive buffer the ground-station listener asks for (bytes)."""
+
+
 @dataclass
 class GroundStation:
     """A ground-station listener on udpin:HOST:PORT (pymavlink mavutil socket, fdir dialect parser).
@@ -58,6 +62,11 @@ class GroundStation:
         from fdir_service.daemon import open_link
 
         self.conn = open_link(f"udpin:{self.host}:{self.port}", source_system=255, source_component=190)
+        # A lockstep flight sends ~3000 datagrams/s; with the default ~200 kB receive buffer a pause
+        # of this (Python) listener of ~0.1 s lets the kernel drop some. Ask for 4 MB (capped by
+        # net.core.rmem_max); the service's own sending is what the tests check, not loopback.
+        with contextlib.suppress(OSError):
+            self.conn.port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
         self.mav = new_mavlink(255, 190, key=self.key)
         self.last_t = math.nan
 
