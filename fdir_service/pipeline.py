@@ -144,7 +144,8 @@ class Pipeline:
         self.mav_in = new_mavlink(255, 0, key=key, link_id=config.signing_link_id)
         self.mav_out = new_mavlink(self.system or 1, config.component, key=key,
                                    link_id=config.signing_link_id)
-        self.adaptive = self.filter_name in ("AJMRPF", "ARJMRPF", "AJMRPF-thesis", "ARJMRPF-thesis")
+        # adaptive filters (AJMRPF, ARJMRPF and their -thesis variants) publish Pfa/Pmd/transitions
+        self.adaptive = bool(getattr(getattr(self.filter, "transition", None), "adaptive", False))
         self.publisher = Publisher(config.publish, self.scenario.faults, self.mav_out, self.adaptive)
         self.assembler = FrameAssembler(config, trim_input(self.scenario))
         self.rejected: Counter[str] = Counter()

@@ -173,6 +173,14 @@ def test_adaptive_proposal_mode_is_importance_weighted_to_the_model_matrix():
     se = 0.01 * math.sqrt((1 - p) / (m0.sum() * p))        # from the binomial count of the moves
     assert abs(frac - 0.01) < 5 * se
     assert abs(np.mean(up[m0]) - p) < 0.01                 # while 44 % of them actually moved
+    # with no evidence (Pfa 0.5) the proposal's pi01 is eq. 6.76's ~2e-4 (no floor): a sentinel then
+    # carries log(0.01 / pi01) ~ +4 in its log-weight
+    quiet = AdaptiveTransition(np.array([0.015]), window=3, roc=lambda *a, **k: (0.5, 0.5, 0.0),
+                               pi01=0.01, pi10=0.01, proposal=True)
+    quiet.update(np.array([0.0]), np.array([0.0]))
+    assert quiet.pi01[0] == pytest.approx(1 - phi_fa(0.5)) and quiet.pi01[0] < 3e-4
+    lw_q = quiet.log_weight_correction(np.zeros((1, 2), bool), np.array([[True, False]]), np.array([True]))
+    assert lw_q[0] == pytest.approx(math.log(0.01 / quiet.pi01[0])) and lw_q[0] > 3.5
     # a fault that could not jump this step (rows missing) gets no correction
     lw_na = at.log_weight_correction(before, before, np.array([False]))
     assert np.all(lw_na == 0.0)

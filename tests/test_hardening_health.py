@@ -230,3 +230,14 @@ def test_max_state_jump_is_validated():
         with pytest.raises(ConfigError, match="health.max_state_jump"):
             ServiceConfig.from_toml_text(base.replace("max_state_jump = [50.0, 20.0, 20.0, 1.0, 5.0]",
                                                       f"max_state_jump = {bad}", 1))
+
+
+def test_pipeline_publishes_adaptive_fields_for_every_adaptive_filter_name():
+    # derived from the filter (its jump strategy), not from a list of names
+    from fdir_service.service_config import load_service_config
+
+    cfg = load_service_config()
+    flags = {name: Pipeline(cfg, filter_name=name, particles=50, seed=1).adaptive
+             for name in ("AJMRPF", "AJMRPF-thesis", "ARJMRPF-thesis", "JMRPF", "RJMRPF", "KF", "IMM-KF")}
+    assert flags == {"AJMRPF": True, "AJMRPF-thesis": True, "ARJMRPF-thesis": True, "JMRPF": False,
+                     "RJMRPF": False, "KF": False, "IMM-KF": False}

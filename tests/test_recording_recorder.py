@@ -169,6 +169,15 @@ def test_non_adaptive_estimate_has_no_pfa_fields():
     assert list(obj) == names
 
 
+def test_estimate_without_covariance_records_null_variances():
+    # a filter asked not to output its covariance (ParticleFilter.output_covariance = False)
+    o = step_output(4)
+    o.x_cov = None
+    obj = S.estimate_json(1.0, o, 0.0)
+    assert obj["x_theta"] == o.x_mean[3]
+    assert all(obj[k] is None for k in obj if k.startswith("var_")) and "var_q" in obj
+
+
 @pytest.mark.parametrize("name", ["HEARTBEAT", "ODOMETRY", "STATUSTEXT", "NAMED_VALUE_FLOAT", "GPS_RAW_INT"])
 def test_mavlink_schema_matches_decoded_message(name):
     cls = mavlink.mavlink_map[next(k for k, v in mavlink.mavlink_map.items() if v.msgname == name)]

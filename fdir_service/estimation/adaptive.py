@@ -100,6 +100,9 @@ class AdaptiveTransition:
             self.pfa[j] = min(max(pfa, 0.0), 1.0) if pfa == pfa else 0.5   # NaN -> no evidence
             self.pmd[j] = min(max(pmd, 0.0), 1.0) if pmd == pmd else 0.5
         self.pi01 = 1.0 - phi_fa(self.pfa)
+        # proposal: pi01 as eq. 6.76 gives it, even below the model's (with no evidence, Pfa ~ 0.5,
+        # ~2e-4: a rare sentinel then carries up to ~60x the weight; a floor at the model's pi01
+        # measured worse, docs/estimation.md "ch6"); pi10 the model's
         self.pi10 = self.model_pi10.copy() if self.proposal else 1.0 - phi_md(self.pmd)
 
     def log_weight_correction(self, before: np.ndarray, after: np.ndarray,
@@ -111,7 +114,7 @@ class AdaptiveTransition:
         """
         if not self.proposal:
             return None
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):   # equal 0 or 1 probabilities: NaN, unused
             l01 = np.log(self.model_pi01) - np.log(self.pi01)
             l00 = np.log1p(-self.model_pi01) - np.log1p(-self.pi01)
             l10 = np.log(self.model_pi10) - np.log(self.pi10)

@@ -18,7 +18,8 @@ One class, `ParticleFilter`, configured with:
 - actuator_jump_state=True (scenario `estimator.actuator_sentinel = "consistent"`): an actuator
   fault entry that jumps by dF also moves the particle's airframe state by B_a dF (the amplitude
   is the fault that acted over the last frame, eq. 4.13);
-- sentinel_prior_width (nf,) = 2 amplitude_max per sensor fault: the "prior" sentinel weighting
+- sentinel_prior_width (nf,) = 2 amplitude_max per sensor fault (and per actuator fault with
+  actuator_jump_state; NaN: the thesis's weighting): the "prior" sentinel weighting
   (scenario `estimator.sentinel_weighting = "prior"`): sentinels drawn from N(A, s^2) and
   weighted by p(f | jump) / q(f), see `_spread_sentinels` and docs/estimation.md.
 
@@ -123,6 +124,7 @@ class ParticleFilter:
         """"prior" weighting: draw sentinels from q = N(A, s^2) (True) or place them at A with the
         marginal weight sqrt(2 pi) s / L (False: q's mode, a Laplace approximation)."""
         self._row_index: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        """mask bytes -> `_sentinel_rows` (faults (k,), their (s_j, log c_j + log s_j) (k, 2))."""
         self.reinitialisations = 0
         self.x0_mean = np.asarray(x0_mean, dtype=float).copy()
         self.X = np.asarray(x0_mean, dtype=float)[:, None] + rng.standard_normal((self.n, self.N)) \
@@ -196,7 +198,7 @@ class ParticleFilter:
         return hit
 
     def _spread_sentinels(self, X: np.ndarray, mask: np.ndarray) -> np.ndarray | None:
-        """"prior" weighting: draw this step's sensor-fault sentinels from q and weight by p / q.
+        """"prior" weighting: draw this step's sentinels from q and weight by p / q.
 
         The jump proposes a sentinel's amplitude from the data: q(f) = N(A, s^2), A = y_r - h_r(z_i)
         (eq. 4.16) and s = the row's filter sigma. The amplitude prior of a fault that has just

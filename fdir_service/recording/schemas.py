@@ -235,7 +235,9 @@ def estimate_json(frame_time_s: float, out: StepOutput, latency_s: float) -> dic
     fault_ids = tuple(out.fault_ids)
     x = np.asarray(out.x_mean, dtype=float).ravel()
     nf = len(fault_ids)
-    parts = [x, np.diag(np.asarray(out.x_cov, dtype=float)),
+    var = (np.diag(np.asarray(out.x_cov, dtype=float)) if out.x_cov is not None
+           else np.full(x.size, np.nan))                 # a filter asked not to output it
+    parts = [x, var,
              np.asarray(out.fault_estimate, dtype=float).ravel()[:nf],
              np.asarray(out.fault_probability, dtype=float).ravel()[:nf]]
     adaptive = is_adaptive(out)
