@@ -98,8 +98,8 @@ class Daemon:
         link_timeout = self.pipeline.config.health.link_timeout_s
         last_frames, last_progress, last_idle_hb = -1, -1e9, -1e9
         t_end = None if max_seconds is None else time.monotonic() + max_seconds
-        self.log(f"fdir: {self.pipeline.filter_name} N={self.pipeline.particles} on scenario "
-                 f"{self.pipeline.scenario.id}; autopilot link {self.master_url}"
+        self.log(f"fdir: {self.pipeline.filter_name} N={self.pipeline.particles} on estimator "
+                 f"{self.pipeline.estimator.id}; autopilot link {self.master_url}"
                  + (f"; ground stations {', '.join(self.gcs_urls)}" if self.gcs_urls else "")
                  + ("; signing on" if self.pipeline.signed else ""))
         self.pipeline.defer_observers(True)

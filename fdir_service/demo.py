@@ -162,7 +162,7 @@ def _declared_at(gs: GroundStation, fid: str, t: float) -> bool:
 
 def summary(gs: GroundStation, scenario, alt_err_m: float | None = None) -> list[str]:
     """Detection delays (first declaring STATUSTEXT after onset) and estimate errors per fault."""
-    from fdir_service.scenario import Scenario  # noqa: F401  (type of `scenario`)
+    from sim_bridge.scenario import Scenario  # noqa: F401  (type of `scenario`)
 
     lines = []
     for f in scenario.faults:
@@ -230,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="where the MCAP logs go (default ./demo-output)")
     args = ap.parse_args(argv)
 
-    from fdir_service.scenario import load_scenario
+    from sim_bridge.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
     fault_ids = [f.id for f in scenario.faults]

@@ -26,6 +26,7 @@ event and a STATUSTEXT; the HEARTBEAT says CRITICAL for `reinit_holdoff_s` after
 
 from __future__ import annotations
 
+import json
 import platform
 import time
 from collections import Counter, deque
@@ -39,7 +40,7 @@ from fdir_service.estimation.base import Filter, StepOutput
 from fdir_service.ingest import AssembledFrame, FrameAssembler
 from fdir_service.mavlink import dialect, dialect_text, new_mavlink
 from fdir_service.publish import Publisher
-from fdir_service.scenario import Scenario
+from fdir_service.estimator_config import EstimatorConfig
 
 try:  # the measurement -> state map of the filters' measurement model (read only)
     from fdir_service.estimation.measurement import MEASURED_STATE
@@ -55,7 +56,7 @@ MAVLink_message = dialect.MAVLink_message
 PARTICLES_TOP_K = 20
 SIGNING_EPOCH_UNIX_S = 1420070400  # MAVLink 2 signing timestamps: 10 us units since 2015-01-01 UTC
 FilterFactory = Callable[..., Filter]
-"""(name, scenario, rng, particles[, x0=(5,) airframe state]) -> Filter."""
+"""(name, estimator config, rng, particles[, x0=(5,) airframe state]) -> Filter."""
 
 COMMAND_MESSAGES = frozenset({
     "COMMAND_LONG", "COMMAND_INT", "COMMAND_CANCEL", "SET_MODE", "PARAM_SET", "PARAM_EXT_SET",
@@ -89,19 +90,18 @@ class PipelineObserver(Protocol):
                      t_ns: int) -> None: ...
 
 
-def _default_factory(name: str, scenario: Scenario, rng: np.random.Generator,
+def _default_factory(name: str, estimator: EstimatorConfig, rng: np.random.Generator,
                      particles: int | None, x0: np.ndarray | None = None) -> Filter:
     from fdir_service.estimation.factory import build_filter
 
-    return build_filter(name, scenario, rng, particles=particles, x0=x0)
+    return build_filter(name, estimator, rng, particles=particles, x0=x0)
 
 
-def trim_input(scenario: Scenario) -> np.ndarray:
-    """The trim input [delta_e rad, delta_t] of the scenario's flight condition (u before any arrives)."""
-    from fdir_service.airframe import load_airframe, trim
+def trim_input(estimator: EstimatorConfig) -> np.ndarray:
+    """The trim input [delta_e rad, delta_t] at the estimator's operating point (u before any arrives)."""
+    from fdir_service.estimation.factory import trim_input as estimator_trim_input
 
-    return np.asarray(trim(load_airframe(), scenario.truth.airspeed_mps, scenario.truth.altitude_m).u,
-                      dtype=float)
+    return estimator_trim_input(estimator)
 
 
 def _bad_data_reason(msg) -> str:
@@ -116,7 +116,7 @@ def _bad_data_reason(msg) -> str:
 
 
 class Pipeline:
-    """See the module doc. `filter_factory(name, scenario, rng, particles)` replaces
+    """See the module doc. `filter_factory(name, estimator, rng, particles)` replaces
     `estimation.factory.build_filter` (tests use a fake filter)."""
 
     def __init__(self, config: ServiceConfig, *, filter_name: str | None = None,
@@ -124,7 +124,7 @@ class Pipeline:
                  observers: Sequence[PipelineObserver] = (),
                  filter_factory: FilterFactory | None = None) -> None:
         self.config = config
-        self.scenario = config.scenario
+        self.estimator = config.estimator
         self.filter_name = filter_name or config.filter
         self.particles = int(particles if particles is not None else config.particles)
         self.seed = int(seed if seed is not None else config.seed)
@@ -146,8 +146,8 @@ class Pipeline:
                                    link_id=config.signing_link_id)
         # adaptive filters (AJMRPF, ARJMRPF and their -thesis variants) publish Pfa/Pmd/transitions
         self.adaptive = bool(getattr(getattr(self.filter, "transition", None), "adaptive", False))
-        self.publisher = Publisher(config.publish, self.scenario.faults, self.mav_out, self.adaptive)
-        self.assembler = FrameAssembler(config, trim_input(self.scenario))
+        self.publisher = Publisher(config.publish, self.estimator.faults, self.mav_out, self.adaptive)
+        self.assembler = FrameAssembler(config, trim_input(self.estimator))
         self.rejected: Counter[str] = Counter()
         self.frames = 0
         self.latencies: deque[float] = deque(maxlen=LATENCY_WINDOW)
@@ -171,8 +171,8 @@ class Pipeline:
         self._low_neff = 0
         self._last_reinit_us: int | None = None
         self._last_good_state: np.ndarray | None = None
-        self._sigma = np.asarray(self.scenario.sensors.filter_sigma(), dtype=float)
-        self._rows = [MEASURED_STATE.get(name) for name in self.scenario.sensors.measurements]
+        self._sigma = np.asarray(self.estimator.filter_sigma(), dtype=float)
+        self._rows = [MEASURED_STATE.get(name) for name in self.estimator.measurements]
         jump = tuple(getattr(self.health, "max_state_jump", ()) or ())
         self._max_jump = np.asarray(jump, dtype=float) if len(jump) == 5 else None
         self._prev_state: np.ndarray | None = None   # last published airframe estimate (5,)
@@ -184,14 +184,15 @@ class Pipeline:
     def _new_filter(self, x0: np.ndarray | None = None) -> Filter:
         rng = np.random.default_rng(self._seedseq.spawn(1)[0])
         if x0 is not None and self._factory_takes_x0:
-            return self._factory(self.filter_name, self.scenario, rng, self.particles, x0=x0)
-        return self._factory(self.filter_name, self.scenario, rng, self.particles)
+            return self._factory(self.filter_name, self.estimator, rng, self.particles, x0=x0)
+        return self._factory(self.filter_name, self.estimator, rng, self.particles)
 
     def _emit_metadata(self) -> None:
         import pymavlink
 
-        cfg = {"service_toml": self.config.text, "scenario_toml": self.config.scenario_text,
-               "scenario": self.scenario.id, "filter": self.filter_name,
+        cfg = {"service_toml": self.config.text,
+               "estimator_json": json.dumps(self.estimator.doc, sort_keys=True),
+               "estimator": self.estimator.id, "filter": self.filter_name,
                "particles": str(self.particles), "seed": str(self.seed),
                "source": self.config.source}
         versions = {"fdir_service": __version__, "python": platform.python_version(),
@@ -380,7 +381,7 @@ class Pipeline:
         """
         from fdir_service.estimation.factory import trim_state
 
-        ref = self._last_good_state if self._last_good_state is not None else trim_state(self.scenario)
+        ref = self._last_good_state if self._last_good_state is not None else trim_state(self.estimator)
         x0 = ref.astype(float).copy()
         best: dict[int, float] = {}
         for j, row in enumerate(self._rows):

@@ -46,7 +46,8 @@ NON_DETERMINISTIC_FIELDS = ("latency_s",)
 
 # keys of the "config" metadata record written by the pipeline (first match wins)
 _SERVICE_KEYS = ("service_toml", "service", "config_toml", "config")
-_SCENARIO_KEYS = ("scenario_toml", "scenario")
+_LEGACY_SCENARIO_KEYS = ("scenario_toml",)
+"""Logs before the estimator files: the scenario TOML the estimator was built from."""
 
 
 class ReplayError(ValueError):
@@ -56,16 +57,18 @@ class ReplayError(ValueError):
 # ------------------------------------------------------------------------------ reading a log
 
 def recorded_setup(log: McapLog) -> dict[str, Any]:
-    """The flight's setup from the "config" metadata: service TOML text, scenario TOML text,
-    filter, particles, seed."""
+    """The flight's setup from the "config" metadata: service TOML text, the estimator document
+    (`estimator_json`; from the scenario TOML of a log recorded before estimator files), filter,
+    particles, seed."""
     cfg = log.metadata.get("config")
     if not cfg:
         raise ReplayError(f"{log.path}: no 'config' metadata: not a recording of `fdir run`")
     service = next((cfg[k] for k in _SERVICE_KEYS if k in cfg), None)
     if service is None:
         raise ReplayError(f"{log.path}: 'config' metadata holds no service TOML (keys: {sorted(cfg)})")
-    scenario = next((cfg[k] for k in _SCENARIO_KEYS if k in cfg), None)
-    out: dict[str, Any] = {"service_toml": service, "scenario_toml": scenario}
+    legacy = next((cfg[k] for k in _LEGACY_SCENARIO_KEYS if k in cfg), None)
+    estimator = json.loads(cfg["estimator_json"]) if cfg.get("estimator_json") else None
+    out: dict[str, Any] = {"service_toml": service, "estimator_doc": estimator, "legacy_scenario": legacy}
     out["filter"] = cfg.get("filter")
     out["particles"] = int(cfg["particles"]) if cfg.get("particles") not in (None, "") else None
     out["seed"] = int(cfg["seed"]) if cfg.get("seed") not in (None, "") else None
@@ -283,8 +286,15 @@ def build_pipeline(setup: dict[str, Any], *, filter_name: str | None, particles:
     from fdir_service.pipeline import Pipeline
     from fdir_service.service_config import ServiceConfig
 
-    config = ServiceConfig.from_toml_text(setup["service_toml"], scenario_text=setup["scenario_toml"],
-                                          source="<recorded config>")
+    if setup.get("estimator_doc") is None and setup.get("legacy_scenario"):
+        from fdir_service.recording.legacy import service_from_legacy
+
+        doc, est = service_from_legacy(setup["service_toml"], setup["legacy_scenario"])
+        config = ServiceConfig.from_document(doc, setup["service_toml"], estimator_doc=est,
+                                             source="<recorded config, before estimator files>")
+    else:
+        config = ServiceConfig.from_toml_text(setup["service_toml"], estimator_doc=setup.get("estimator_doc"),
+                                              source="<recorded config>")
     kw = {} if filter_factory is None else {"filter_factory": filter_factory}
     return Pipeline(config, filter_name=filter_name, particles=particles, seed=seed, observers=observers,
                     **kw)

@@ -1,11 +1,12 @@
-"""The service configuration (`config/service.toml`): links, signing, frames, publishing, and the
+"""The service configuration (`config/service/default.toml`): links, signing, frames, publishing, and the
 mapping from MAVLink message fields to the filter's measurement vector y (m,) and input u (2,).
 
 A mapped value is `raw * scale + offset`, then a transform: `none`, `pressure_to_altitude`
 (Pa -> m above MSL, the barometric formula of `fdir_service.atmosphere`), `negate`, or `pwm`
-(linear from [pwm_min, pwm_max] us to [min, max] in SI; clipped to that range). The scenario
-file named in `[service] scenario` supplies the filter settings, the measurement set (its rows,
-in order) and the fault layout. Every key is validated on load: an unknown key, a wrong type or
+(linear from [pwm_min, pwm_max] us to [min, max] in SI; clipped to that range). The estimator
+file named in `[service] estimator` (`config/estimators/`, default `aerosonde`) supplies the
+airframe, the filter and its settings, the measurement rows (in order) and the monitored faults;
+`[service]` may override its filter, particles and seed. Every key is validated on load: an unknown key, a wrong type or
 an impossible value raises `ConfigError` naming the key.
 """
 
@@ -19,8 +20,15 @@ from pathlib import Path
 from typing import Any
 
 from fdir_service.errors import ConfigError
-from fdir_service.paths import config_dir, scenario_path
-from fdir_service.scenario import ACTUATORS, FILTER_NAMES, Scenario, load_scenario, parse_scenario
+from fdir_service.estimator_config import (
+    ACTUATORS,
+    DEFAULT_ESTIMATOR,
+    FILTER_NAMES,
+    EstimatorConfig,
+    load_estimator,
+    parse_estimator,
+)
+from fdir_service.paths import service_path
 from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, Check, TomlTable
 
 TRANSFORMS = ("none", "negate", "pressure_to_altitude", "pwm")
@@ -28,15 +36,15 @@ _FIELD_RE = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
 
 
 def default_config_path() -> Path:
-    """`config/service.toml` (beside the package, or under $FDIR_CONFIG_DIR)."""
-    return config_dir() / "service.toml"
+    """`config/service/default.toml` (beside the package, or under $FDIR_CONFIG_DIR)."""
+    return service_path("default")
 
 
 @dataclass(frozen=True)
 class FieldMap:
     """One vector entry read from one message field.
 
-    name: the measurement (scenario name) or input (delta_e, delta_t); message: MAVLink message
+    name: the measurement (estimator row name) or input (delta_e, delta_t); message: MAVLink message
     name (e.g. "GPS_RAW_INT"); field: field name, `name[i]` for an array element; value in SI =
     transform(raw * scale + offset); `where`: field -> required value (other messages of that
     type are ignored for this entry); valid range checked on the SI value; stale_s: a measurement
@@ -136,10 +144,11 @@ class RecordConfig:
 
 @dataclass(frozen=True)
 class ServiceConfig:
-    """A validated service configuration. `text` and `scenario_text` are the TOML sources (recorded
-    in logs so that `fdir replay` rebuilds the identical pipeline)."""
+    """A validated service configuration. `text` is the TOML source and `estimator.doc` the resolved
+    estimator document (both recorded in logs so that `fdir replay` rebuilds the identical pipeline);
+    `filter`, `particles` and `seed` are the estimator's unless `[service]` overrides them."""
 
-    scenario: Scenario
+    estimator: EstimatorConfig
     filter: str
     particles: int
     seed: int
@@ -157,7 +166,6 @@ class ServiceConfig:
     health: HealthConfig = field(default_factory=HealthConfig)
     record: RecordConfig = field(default_factory=RecordConfig)
     text: str = ""
-    scenario_text: str = ""
     source: str = "<text>"
 
     @property
@@ -182,28 +190,43 @@ class ServiceConfig:
         return key
 
     @classmethod
-    def from_toml_text(cls, text: str, *, scenario_text: str | None = None,
+    def from_toml_text(cls, text: str, *, estimator_doc: dict[str, Any] | None = None,
                        source: str = "<text>") -> ServiceConfig:
-        """Parse and validate. With `scenario_text` (as recorded in a log) that scenario TOML is
-        used instead of the file named in `[service] scenario`."""
+        """Parse and validate. With `estimator_doc` (the resolved estimator document, as recorded in
+        a log) that estimator is used instead of the file named in `[service] estimator`."""
         try:
             doc = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+        return cls.from_document(doc, text, estimator_doc=estimator_doc, source=source)
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any], text: str = "", *,
+                      estimator_doc: dict[str, Any] | None = None,
+                      source: str = "<text>") -> ServiceConfig:
+        """As `from_toml_text`, from an already parsed TOML document (`text` is kept for logs)."""
         try:
-            return _parse(doc, text, scenario_text, source)
+            return _parse(doc, text, estimator_doc, source)
         except ConfigError as exc:
             raise ConfigError(f"{source}: {exc}") from None
 
 
-def load_service_config(path: str | Path | None = None) -> ServiceConfig:
-    """Load and validate a service config file (default `config/service.toml`)."""
+def load_service_config(path: str | Path | None = None, *, estimator: str | None = None) -> ServiceConfig:
+    """Load and validate a service config file (default `config/service/default.toml`);
+    `estimator` (a name or path) replaces its `[service] estimator`."""
     p = Path(path) if path is not None else default_config_path()
     try:
         text = p.read_text()
     except FileNotFoundError:
         raise ConfigError(f"{p}: no such service config file") from None
-    return ServiceConfig.from_toml_text(text, source=str(p))
+    if estimator is None:
+        return ServiceConfig.from_toml_text(text, source=str(p))
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML: {exc}") from None
+    doc.setdefault("service", {})["estimator"] = str(estimator)
+    return ServiceConfig.from_document(doc, text, source=str(p))
 
 
 # ----------------------------------------------------------------------------- validation
@@ -263,26 +286,24 @@ def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
     return fm
 
 
-def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: str) -> ServiceConfig:
+def _estimator(s: TomlTable, estimator_doc: dict[str, Any] | None) -> EstimatorConfig:
+    """The estimator named in [service] (or the recorded one), with [service]'s overrides."""
+    ref = s.take("estimator", "string", DEFAULT_ESTIMATOR)
+    est = (load_estimator(ref) if estimator_doc is None
+           else parse_estimator(estimator_doc, f"<recorded estimator {ref}>"))
+    return est.with_filter(
+        s.take("filter", "string", est.filter, choices=FILTER_NAMES),
+        s.take("particles", "integer", est.particles,
+               check=POSITIVE.saying("a positive number of particles")),
+        s.take("seed", "integer", est.seed, check=NON_NEGATIVE.saying("a non-negative integer")))
+
+
+def _parse(doc: dict[str, Any], text: str, estimator_doc: dict[str, Any] | None,
+           source: str) -> ServiceConfig:
     root = TomlTable(doc, "")
     s = root.sub("service")
-    scen_ref = s.take("scenario", "string", "ch4")
-    if scenario_text is None:
-        try:
-            scenario_text = scenario_path(scen_ref).read_text()
-        except OSError:
-            raise ConfigError(f"service.scenario: no scenario {scen_ref!r} "
-                              f"(looked for {scenario_path(scen_ref)})") from None
-        scenario = load_scenario(scen_ref)
-    else:
-        try:
-            scenario = parse_scenario(tomllib.loads(scenario_text), f"<recorded {scen_ref}>")
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"service.scenario: recorded scenario text is not TOML: {exc}") from None
-    filt = s.take("filter", "string", scenario.estimator.proposed, choices=FILTER_NAMES)
-    particles = s.take("particles", "integer", scenario.estimator.particles,
-                       check=POSITIVE.saying("a positive number of particles"))
-    seed = s.take("seed", "integer", 0, check=NON_NEGATIVE.saying("a non-negative integer"))
+    est = _estimator(s, estimator_doc)
+    filt, particles, seed = est.filter, est.particles, est.seed
     s.finish()
 
     link = root.sub("link")
@@ -303,10 +324,10 @@ def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: st
     sg.finish()
 
     fr = root.sub("frames")
-    rate = fr.take("rate_hz", "number", 1.0 / scenario.dt_s, check=POSITIVE.saying("a positive rate"))
-    if abs(rate * scenario.dt_s - 1.0) > 1e-6:
-        raise ConfigError(f"frames.rate_hz: the scenario's filter models are discretised at "
-                          f"dt = {scenario.dt_s} s, so the rate must be {1.0 / scenario.dt_s:g} Hz, "
+    rate = fr.take("rate_hz", "number", 1.0 / est.dt_s, check=POSITIVE.saying("a positive rate"))
+    if abs(rate * est.dt_s - 1.0) > 1e-6:
+        raise ConfigError(f"frames.rate_hz: the estimator's filter models are discretised at "
+                          f"dt = {est.dt_s} s, so the rate must be {1.0 / est.dt_s:g} Hz, "
                           f"got {rate!r}")
     max_gap = fr.take("max_gap_s", "number", 2.0, check=NON_NEGATIVE.saying("a non-negative time (s)"))
     fr.finish()
@@ -326,7 +347,7 @@ def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: st
     publish = PublishConfig(
         named_value_rate_hz=pb.take("named_value_rate_hz", "number", 10.0,
                                     check=POSITIVE.saying("a positive rate")),
-        estimate_rate_hz=pb.take("estimate_rate_hz", "number", 1.0 / scenario.dt_s,
+        estimate_rate_hz=pb.take("estimate_rate_hz", "number", 1.0 / est.dt_s,
                                  check=POSITIVE.saying("a positive rate")),
         heartbeat_period_s=pb.take("heartbeat_period_s", "number", 1.0,
                                    check=POSITIVE.saying("a positive period")),
@@ -338,11 +359,11 @@ def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: st
     mt = root.sub("measurements")
     maps = {k: _field_map(mt.sub(k), k, False) for k in mt.keys()}
     mt.finish()
-    missing = [m for m in scenario.sensors.measurements if m not in maps]
+    missing = [m for m in est.measurements if m not in maps]
     if missing:
-        raise ConfigError(f"measurements.{missing[0]}: missing; scenario {scenario.id!r} measures "
-                          f"{', '.join(scenario.sensors.measurements)} and each needs a mapping")
-    measurements = tuple(maps[m] for m in scenario.sensors.measurements)
+        raise ConfigError(f"measurements.{missing[0]}: missing; estimator {est.id!r} measures "
+                          f"{', '.join(est.measurements)} and each needs a mapping")
+    measurements = tuple(maps[m] for m in est.measurements)
 
     it = root.sub("inputs")
     imaps = {}
@@ -389,9 +410,9 @@ def _parse(doc: dict[str, Any], text: str, scenario_text: str | None, source: st
     root.finish()
 
     return ServiceConfig(
-        scenario=scenario, filter=filt, particles=particles, seed=seed, master=master,
+        estimator=est, filter=filt, particles=particles, seed=seed, master=master,
         gcs=tuple(gcs), autopilot_system=ap_sys, component=comp, signing_key_file=key_file,
         signing_link_id=link_id, frame_rate_hz=rate, max_gap_s=max_gap,
         measurements=measurements, inputs=inputs, publish=publish, health=health, record=record, text=text,
-        scenario_text=scenario_text, source=source,
+        source=source,
     )

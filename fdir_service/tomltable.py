@@ -143,6 +143,11 @@ class TomlTable:
             raise ConfigError(f"{full}: expected an array of tables ([[{header}]]), got {raw!r}")
         return [TomlTable(item, f"{full}[{i}]") for i, item in enumerate(raw)]
 
+    def rest(self) -> dict[str, Any]:
+        """Consume every key not taken yet and return them as a plain table (for overrides)."""
+        out, self._data = self._data, {}
+        return out
+
     def finish(self) -> None:
         """Raise if any key was not consumed, naming them all."""
         if self._data:

@@ -30,7 +30,7 @@ import control
 import numpy as np
 
 from fdir_service.airframe.linearize import LinearModel
-from fdir_service.scenario import CommandConfig
+from sim_bridge.scenario import CommandConfig
 
 GAMMA_LIMIT_RAD = np.radians(28.0)
 ELEVATOR_LIMIT_RAD = np.radians(30.0)

@@ -24,15 +24,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fdir_service.scenario import Scenario
+from sim_bridge.scenario import Scenario
 
 GATE = "EKF-GATE"
 TOP_K = 20
 
 
 def campaign_filters(scenario: Scenario) -> tuple[str, ...]:
-    """The filters a campaign runs: the scenario's (estimator.filters) plus the EKF-GATE baseline."""
-    f = tuple(scenario.estimator.filters)
+    """The filters a campaign runs: the experiment's (experiment.filters) plus the EKF-GATE baseline."""
+    f = tuple(scenario.filters)
     return f if GATE in f else f + (GATE,)
 
 
@@ -51,9 +51,9 @@ def build(name: str, scenario: Scenario, rng: np.random.Generator, particles: in
     """Any filter of the project by name: EKF-GATE from `gating`, the rest from `factory`."""
     if name == GATE:
         from fdir_service.estimation.gating import build_gating_filter
-        return build_gating_filter(scenario, rng, particles=particles)
+        return build_gating_filter(scenario.estimator, rng, particles=particles)
     from fdir_service.estimation.factory import build_filter
-    return build_filter(name, scenario, rng, particles=particles)
+    return build_filter(name, scenario.estimator, rng, particles=particles)
 
 
 def simulate(scenario: Scenario, seed: int, nav=None):

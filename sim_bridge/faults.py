@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from fdir_service.scenario import FaultChannel, ProfileComponent, Scenario
+from sim_bridge.scenario import FaultChannel, ProfileComponent, Scenario
 
 EDGE_TOL_S = 1e-9
 

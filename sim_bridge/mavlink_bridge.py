@@ -23,7 +23,7 @@ import numpy as np
 
 from fdir_service.mavlink import FDIR_ESTIMATE_ID, dialect, new_mavlink
 from fdir_service.mavlink import pack as fast_pack
-from fdir_service.scenario import Scenario
+from sim_bridge.scenario import Scenario
 
 ELEVATOR_PWM_RANGE_RAD = math.radians(30.0)
 """Elevator deflection at PWM 1000 / 2000 us (-/+), 1500 us = 0."""

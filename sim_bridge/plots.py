@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from fdir_service.scenario import Scenario  # noqa: E402
+from sim_bridge.scenario import Scenario  # noqa: E402
 from sim_bridge.simulate import Trajectory  # noqa: E402
 
 _FAULT_COLOURS = ("tab:red", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive")

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from fdir_service.paths import config_dir
-from fdir_service.scenario import Scenario
+from sim_bridge.scenario import Scenario
 from sim_bridge.campaign import GATE, Campaign, FilterRuns
 from sim_bridge.faults import channel_value
 from sim_bridge.metrics import (
@@ -200,7 +200,7 @@ def _ordering_notes(orders: list[dict]) -> list[str]:
 
 def goal_rows(scenario: Scenario, doc: dict, thesis: dict) -> list[dict]:
     """The proposed filter's mean fault RMSE against the thesis's (goal: at or below)."""
-    prop = scenario.estimator.proposed
+    prop = scenario.proposed
     th = thesis.get(scenario.id, {}).get("filters", {}).get(prop, {})
     rows = []
     for f in scenario.faults:
@@ -255,7 +255,7 @@ def markdown(scenario: Scenario, doc: dict, thesis: dict, figures: list[str], wa
         L += _ordering_notes(orders)
     goals = goal_rows(scenario, doc, thesis)
     if goals:
-        L += [f"## Goal: {scenario.estimator.proposed} mean fault RMSE at or below the thesis's", "",
+        L += [f"## Goal: {scenario.proposed} mean fault RMSE at or below the thesis's", "",
               "| quantity | ours | thesis | ours/thesis | met |", "|---|---|---|---|---|"]
         for g in goals:
             L.append(f"| {g['quantity']} | {_fmt(g['ours'])} | {_fmt(g['thesis'])} | "
@@ -424,7 +424,7 @@ def figures(camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]
     save(fig, "rmse_states.png")
 
     # 3. the 20 most weighted particles every second, proposed filter's median run (Fig. 4.13)
-    prop = sc.estimator.proposed
+    prop = sc.proposed
     if prop in camp.filters:
         fr = camp.filters[prop]
         r = doc["filters"][prop]["median_run"]
@@ -483,7 +483,7 @@ def _status(docs: dict[str, dict]) -> list[str]:
     """How the campaigns of a combined page were run (runs, N, seed, wall time per scenario)."""
     if not docs:
         return ["No campaign results found."]
-    from fdir_service.scenario import SCENARIO_IDS
+    from sim_bridge.scenario import SCENARIO_IDS
 
     full = min(d["runs"] for d in docs.values()) >= 100 and set(SCENARIO_IDS) <= set(docs)
     L = [("**Status: complete** (every thesis scenario, at least 100 runs)." if full else
@@ -505,7 +505,7 @@ def combined_markdown(root: str | Path, scenario_ids: list[str] | tuple[str, ...
     """
     root = Path(root)
     thesis = thesis_tables() if thesis is None else thesis
-    from fdir_service.scenario import load_scenario
+    from sim_bridge.scenario import load_scenario
 
     docs, scs = {}, {}
     for sid in scenario_ids:
@@ -569,7 +569,7 @@ def publish(results_root: str | Path, docs_dir: str | Path,
     others). Returns the path of results.md."""
     import shutil
 
-    from fdir_service.scenario import SCENARIO_IDS, load_scenario
+    from sim_bridge.scenario import SCENARIO_IDS, load_scenario
 
     src, docs_dir = Path(results_root), Path(docs_dir)
     ids = list(scenario_ids) if scenario_ids is not None else list(SCENARIO_IDS)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from fdir_service.atmosphere import altitude_from_pressure, pressure_from_altitude
-from fdir_service.scenario import Scenario
+from sim_bridge.scenario import Scenario
 
 # Gauss-Markov GNSS error, down axis (thesis Table B.2): driving-noise sigma, 1/k, sample time.
 GM_SIGMA_M = 0.40

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from fdir_service.airframe import AirframeParams, linearize, load_airframe
-from fdir_service.scenario import Scenario
+from sim_bridge.scenario import Scenario
 from sim_bridge.autopilot import Autopilot
 from sim_bridge.faults import fault_vector
 from sim_bridge.sensors import SensorSuite
@@ -90,7 +90,7 @@ class SimStepper:
     def __init__(self, scenario: Scenario, seed: int, airframe: AirframeParams | None = None) -> None:
         self.scenario = scenario
         self.seed = seed
-        self.airframe = airframe if airframe is not None else load_airframe()
+        self.airframe = airframe if airframe is not None else load_airframe(scenario.truth.airframe)
         sensor_ss, world_ss = np.random.SeedSequence(seed).spawn(2)
         self.sensors = SensorSuite(scenario, np.random.default_rng(sensor_ss))
         self.truth = Truth(scenario, self.airframe, np.random.default_rng(world_ss))

@@ -19,7 +19,7 @@ import numpy as np
 from fdir_service.airframe import AirframeParams, trim
 from fdir_service.airframe.dynamics import rk4_step_scalar
 from fdir_service.airframe.linearize import linear_model
-from fdir_service.scenario import ACTUATORS, Scenario
+from sim_bridge.scenario import ACTUATORS, Scenario
 
 
 @lru_cache(maxsize=32)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fdir_service.airframe import load_airframe, printed_model
-from fdir_service.scenario import AltitudeStep, CommandConfig, load_scenario
+from sim_bridge.scenario import AltitudeStep, CommandConfig, load_scenario
 from sim_bridge.autopilot import GAMMA_LIMIT_RAD, Autopilot, design_gains
 from sim_bridge.simulate import default_autopilot, run
 

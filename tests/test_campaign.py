@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fdir_service.estimation.base import StepOutput
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 from sim_bridge.campaign import (
     GATE,
     campaign_filters,

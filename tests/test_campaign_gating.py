@@ -5,7 +5,7 @@ import pytest
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.gating import GatedKF, build_gating_filter, fault_rows, frozen_fault_scenario
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 
 H_CH4 = np.array([[-1.0, 0, 0, 0, 0], [-1, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 1, 0, 0],
                   [0, 0, 0, 1, 0], [0, 0, 0, 0, 1]])

@@ -13,7 +13,7 @@ import json
 
 import pytest
 
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 from sim_bridge.campaign import GATE, run_campaign
 from sim_bridge.cli import main as sim_bridge_main
 from sim_bridge.report import COLUMNS, check_orderings, summarise

@@ -12,7 +12,7 @@ from fdir_service.estimation.factory import build_filter, build_particle_filter
 from fdir_service.estimation.layout import FaultLayout
 from fdir_service.estimation.particle import ParticleFilter
 from fdir_service.estimation.synthetic import generate
-from fdir_service.scenario import SensorConfig, load_scenario
+from sim_bridge.scenario import SensorConfig, load_scenario
 
 PF_NAMES = ("RPF", "RRPF", "JMRPF", "RJMRPF", "bootstrap")
 

@@ -7,7 +7,7 @@ import pytest
 
 from fdir_service.estimation.factory import build_filter
 from fdir_service.estimation.synthetic import generate
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 
 
 @pytest.mark.parametrize("name", ["RPF", "JMRPF", "RJMRPF"])

@@ -15,7 +15,7 @@ from fdir_service.estimation.factory import build_particle_filter
 from fdir_service.estimation.layout import N_AIRFRAME
 from fdir_service.estimation.regularize import regularize_per_mode
 from fdir_service.paths import scenario_path
-from fdir_service.scenario import load_scenario, parse_scenario
+from sim_bridge.scenario import load_scenario, parse_scenario
 
 
 def _ch4(weighting: str = "prior", jitter: str = "per_mode"):

@@ -10,7 +10,7 @@ import pytest
 
 from fdir_service.errors import ConfigError
 from fdir_service.paths import scenario_path
-from fdir_service.scenario import SCENARIO_IDS, load_scenario, parse_scenario
+from sim_bridge.scenario import SCENARIO_IDS, load_scenario, parse_scenario
 
 DEG = math.pi / 180.0
 PITCH_SET = ("baro_alt", "u", "w", "theta", "q")

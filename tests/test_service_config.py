@@ -89,7 +89,7 @@ def test_scenario_and_service_share_one_reader():
     import tomllib
 
     from fdir_service.paths import scenario_path
-    from fdir_service.scenario import parse_scenario
+    from sim_bridge.scenario import parse_scenario
 
     scen = tomllib.loads(scenario_path("ch4").read_text())
     # an int is accepted where a number is expected, and becomes a float

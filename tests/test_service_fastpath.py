@@ -13,7 +13,7 @@ from fdir_service.estimation.base import StepOutput
 from fdir_service.ingest import AssembledFrame
 from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.publish import Publisher
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 from fdir_service.service_config import load_service_config
 
 

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 from sim_bridge.simulate import SimStepper, default_autopilot, run
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from fdir_service.scenario import FaultChannel, ProfileComponent, load_scenario
+from sim_bridge.scenario import FaultChannel, ProfileComponent, load_scenario
 from sim_bridge.faults import channel_value, fault_vector
 
 DEG = math.pi / 180.0

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fdir_service.atmosphere import altitude_from_pressure, pressure_from_altitude
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 from sim_bridge.sensors import SensorSuite
 
 Z_TRIM = np.array([-500.0, 39.954, 1.912, 0.0478, 0.0])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fdir_service.airframe import linearize, load_airframe, rk4_step
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 from sim_bridge.world import Truth
 
 # Perturbation units: 1 m, 1 m/s, 1 m/s, 1 deg, 1 deg/s (docs/simulator.md, "model agreement").

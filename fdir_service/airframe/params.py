@@ -1,4 +1,4 @@
-"""Airframe parameters, loaded and validated from `config/aerosonde.toml` (SPEC section 2)."""
+"""Airframe parameters, loaded and validated from `config/airframes/<name>.toml` (SPEC section 2)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from fdir_service.errors import ConfigError
-from fdir_service.paths import config_dir
+from fdir_service.paths import airframe_path
 from fdir_service.tomltable import load_toml
 
 
@@ -59,7 +59,7 @@ _POSITIVE = {"m", "Jy", "S", "b", "c", "S_prop", "e", "rho", "g", "k_motor"}
 
 def load_airframe(path: str | Path | None = None) -> AirframeParams:
     """Read an airframe TOML (sections are only grouping); unknown keys and bad values fail."""
-    path = Path(path) if path is not None else config_dir() / "aerosonde.toml"
+    path = airframe_path(path) if path is not None else airframe_path("aerosonde")
     doc = load_toml(path, "airframe file")
     known = {f.name for f in fields(AirframeParams)}
     values: dict[str, float] = {}

@@ -40,7 +40,7 @@ def time_filters(names: tuple[str, ...], N: int, steps: int, warmup: int = 20, s
     """
     from fdir_service.estimation.factory import build_filter
     from fdir_service.estimation.synthetic import generate
-    from fdir_service.scenario import load_scenario
+    from sim_bridge.scenario import load_scenario
 
     tick = _clock(clock)
     runs, filters = {}, {}

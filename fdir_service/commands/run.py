@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from fdir_service.scenario import FILTER_NAMES
+from fdir_service.estimator_config import FILTER_NAMES
 
 DESCRIPTION = """\
 Run the onboard fault monitor next to an autopilot.
@@ -24,14 +24,16 @@ component 191 (onboard computer) of the autopilot's system:
   FDIR_ESTIMATE       the whole estimate (message 52500 of the fdir.xml dialect)
 
 Everything goes back on the autopilot link and to each --gcs endpoint, stamped with the
-autopilot's time of the frame it describes. Which message fields feed the filter, the
-scenario (filter settings and fault layout), signing and the publishing rates are set in
-the config file; the options below override it. Stop with Ctrl-C or SIGTERM.
+autopilot's time of the frame it describes. Which message fields feed the filter, signing
+and the publishing rates are set in the service config file; what the monitor assumes (its
+airframe, filter, measurement noise and monitored faults) is set in the estimator file it
+names (default config/estimators/aerosonde.toml); the options below override both. Stop with Ctrl-C or SIGTERM.
 """
 
 EPILOG = """\
 examples:
-  fdir run                                          # config/service.toml: udpin:127.0.0.1:14550
+  fdir run                                          # config/service/default.toml: udpin:127.0.0.1:14550
+  fdir run --estimator my-aircraft.toml             # another airframe / noise / fault set
   fdir run --master udpin:0.0.0.0:14550 --gcs udpout:192.168.1.10:14550
   fdir run --filter RJMRPF --particles 500 --record flight.mcap
   fdir run --no-record                              # default: records into recordings/
@@ -49,7 +51,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "run", help="run the fault monitor on a MAVLink link (the daemon)",
         description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", metavar="FILE", type=Path, default=None,
-                   help="service config TOML (default: config/service.toml)")
+                   help="service config TOML (default: config/service/default.toml)")
+    p.add_argument("--estimator", metavar="NAME|FILE", default=None,
+                   help="estimator file, by name in config/estimators/ or path "
+                        "(default: service.estimator in the config, else aerosonde)")
     p.add_argument("--master", metavar="URL", default=None,
                    help="the autopilot link to listen on (default: link.master in the config)")
     p.add_argument("--gcs", metavar="URL", action="append", default=None,
@@ -80,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     from fdir_service.pipeline import Pipeline
     from fdir_service.service_config import load_service_config
 
-    config = load_service_config(args.config)
+    config = load_service_config(args.config, estimator=args.estimator)
     if args.particles is not None and args.particles <= 0:
         raise ConfigError(f"--particles: expected a positive number, got {args.particles}")
     observers = []

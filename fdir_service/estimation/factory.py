@@ -14,7 +14,7 @@ same process model: no jitter, systematic resampling every step) and "EKF-GATE" 
     AJMRPF-thesis, ARJMRPF-thesis = the same with adaptive_transition = "thesis"
 
 Settings come from scenario.estimator and scenario.faults; the filters assume the measurement
-noise scenario.sensors.filter_sigma(). KF and IMM-KF always use the linearised model
+noise scenario.filter_sigma(). KF and IMM-KF always use the linearised model
 (estimator.linear_matrices); the particle filters use estimator.process_model.
 """
 
@@ -36,7 +36,7 @@ from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.particle import ParticleFilter
 from fdir_service.estimation.process import LinearProcess, NonlinearProcess
 from fdir_service.estimation.regularize import h_opt
-from fdir_service.scenario import Scenario
+from fdir_service.estimator_config import EstimatorConfig
 
 PARTICLE_FILTERS = ("RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "AJMRPF-thesis",
                     "ARJMRPF-thesis", "bootstrap")
@@ -52,42 +52,49 @@ INTEGRATOR = "expeuler"
 
 
 @lru_cache(maxsize=8)
-def _airframe() -> AirframeParams:
-    return load_airframe()
+def _airframe(name: str) -> AirframeParams:
+    return load_airframe(name)
 
 
 @lru_cache(maxsize=16)
-def _linear(which: str, airspeed: float, altitude: float, dt: float) -> LinearModel:
-    return linear_model(_airframe(), which, airspeed, altitude, dt)
+def _linear(airframe: str, which: str, airspeed: float, altitude: float, dt: float) -> LinearModel:
+    return linear_model(_airframe(airframe), which, airspeed, altitude, dt)
 
 
-def scenario_linear_model(scenario: Scenario) -> LinearModel:
-    """The scenario's linear model (estimator.linear_matrices) about its trim."""
-    return _linear(scenario.estimator.linear_matrices, scenario.truth.airspeed_mps,
-                   scenario.truth.altitude_m, scenario.dt_s)
+def estimator_linear_model(config: EstimatorConfig) -> LinearModel:
+    """The estimator's linear model (parts.linear_matrices) about its own airframe's trim at its
+    operating point."""
+    op = config.operating_point
+    return _linear(config.airframe, config.settings.linear_matrices, op.airspeed_mps, op.altitude_m,
+                   config.dt_s)
 
 
-def trim_state(scenario: Scenario) -> np.ndarray:
-    """Trim airframe state (5,) of the scenario: where the truth starts."""
-    return scenario_linear_model(scenario).trim.z.copy()
+def trim_state(config: EstimatorConfig) -> np.ndarray:
+    """Trim airframe state (5,) of the estimator's own airframe at its operating point."""
+    return estimator_linear_model(config).trim.z.copy()
 
 
-def _parts(scenario: Scenario):
-    layout = FaultLayout.from_scenario(scenario)
-    meas = MeasurementModel.build(layout, scenario.sensors.filter_sigma())
-    est = scenario.estimator
+def trim_input(config: EstimatorConfig) -> np.ndarray:
+    """Trim input [delta_e rad, delta_t] at the operating point (u before any input arrives)."""
+    return np.asarray(estimator_linear_model(config).trim.u, dtype=float).copy()
+
+
+def _parts(scenario: EstimatorConfig):
+    layout = FaultLayout.from_estimator(scenario)
+    meas = MeasurementModel.build(layout, scenario.filter_sigma())
+    est = scenario.settings
     q_std = np.array(list(scenario.state_process_std()) + [f.sigma_f for f in scenario.faults])
     x0_std = np.array(list(est.x0_sigma) + [f.x0_sigma for f in scenario.faults])
     return layout, meas, q_std, x0_std
 
 
-def _x0(scenario: Scenario, layout: FaultLayout, x0: np.ndarray | None) -> np.ndarray:
+def _x0(scenario: EstimatorConfig, layout: FaultLayout, x0: np.ndarray | None) -> np.ndarray:
     x = np.zeros(layout.n)
     x[:N_AIRFRAME] = trim_state(scenario) if x0 is None else np.asarray(x0, dtype=float)[:N_AIRFRAME]
     return x
 
 
-def build_kalman(scenario: Scenario, x0: np.ndarray | None = None, name: str = "KF",
+def build_kalman(scenario: EstimatorConfig, x0: np.ndarray | None = None, name: str = "KF",
                  q_std_faults: np.ndarray | None = None, h_fault_columns: bool = True,
                  particles: int | None = None) -> KalmanFilter:
     """KF on the linearised model; q_std_faults (nf,) overrides the faults' sigma_f.
@@ -100,46 +107,46 @@ def build_kalman(scenario: Scenario, x0: np.ndarray | None = None, name: str = "
     if not h_fault_columns:
         meas = MeasurementModel(meas.names, meas.H.copy(), meas.sigma.copy())
         meas.H[:, N_AIRFRAME:] = 0.0
-    process = LinearProcess(scenario_linear_model(scenario), layout)
+    process = LinearProcess(estimator_linear_model(scenario), layout)
     amp = AmplitudePredictor(layout, meas if h_fault_columns else MeasurementModel.build(
-        layout, scenario.sensors.filter_sigma()), process.B_actuator, q_std[:N_AIRFRAME])
+        layout, scenario.filter_sigma()), process.B_actuator, q_std[:N_AIRFRAME])
     return KalmanFilter(process, meas, layout, np.diag(q_std**2), _x0(scenario, layout, x0),
                         np.diag(x0_std**2), name=name,
                         fault_threshold=FAULT_THRESHOLD_SIGMAS * amp.sigma,
-                        n_eff=float(particles if particles is not None else scenario.estimator.particles))
+                        n_eff=float(particles if particles is not None else scenario.particles))
 
 
-def build_imm(scenario: Scenario, x0: np.ndarray | None = None, particles: int | None = None) -> IMMKalman:
+def build_imm(scenario: EstimatorConfig, x0: np.ndarray | None = None, particles: int | None = None) -> IMMKalman:
     """IMM-KF: mode 0 with imm.mode0_sigma_f and no fault columns in H, mode 1 with mode1_sigma_f."""
-    imm = scenario.estimator.imm
+    imm = scenario.settings.imm
     f0 = build_kalman(scenario, x0, "IMM-KF mode 0", np.array(imm.mode0_sigma_f), h_fault_columns=False,
                       particles=particles)
     f0.F[:, N_AIRFRAME:] = 0.0   # fault-free mode: the fault entries are held at 0 and act on nothing
     f1 = build_kalman(scenario, x0, "IMM-KF mode 1", np.array(imm.mode1_sigma_f), particles=particles)
-    p01, p10 = scenario.estimator.pi01, scenario.estimator.pi10
+    p01, p10 = scenario.settings.pi01, scenario.settings.pi10
     M = np.array([[1.0 - p01, p01], [p10, 1.0 - p10]])
     return IMMKalman([f0, f1], M, np.array([1.0, 0.0]))
 
 
-def _process(scenario: Scenario, layout: FaultLayout):
-    lm = scenario_linear_model(scenario)
-    if scenario.estimator.process_model == "linear":
+def _process(scenario: EstimatorConfig, layout: FaultLayout):
+    lm = estimator_linear_model(scenario)
+    if scenario.settings.process_model == "linear":
         return LinearProcess(lm, layout)
-    return NonlinearProcess(_airframe(), lm.trim.z, lm.trim.u, scenario.dt_s, layout, INTEGRATOR)
+    return NonlinearProcess(_airframe(scenario.airframe), lm.trim.z, lm.trim.u, scenario.dt_s, layout, INTEGRATOR)
 
 
-def build_particle_filter(name: str, scenario: Scenario, rng: np.random.Generator,
+def build_particle_filter(name: str, scenario: EstimatorConfig, rng: np.random.Generator,
                           particles: int | None = None, x0: np.ndarray | None = None,
                           roc=None) -> ParticleFilter:
     """One of PARTICLE_FILTERS; roc overrides the saddlepoint ROC search (tests)."""
-    est = scenario.estimator
+    est = scenario.settings
     layout, meas, q_std, x0_std = _parts(scenario)
-    N = int(particles if particles is not None else est.particles)
+    N = int(particles if particles is not None else scenario.particles)
     process = _process(scenario, layout)
     amp = AmplitudePredictor(layout, meas, process.B_actuator, q_std[:N_AIRFRAME])
     n = layout.n
     if est.bandwidth is not None:   # the thesis's h at estimator.particles, scaled to N as h_opt is
-        h = est.bandwidth * h_opt(n, N) / h_opt(n, est.particles)
+        h = est.bandwidth * h_opt(n, N) / h_opt(n, scenario.particles)
     else:
         h = est.bandwidth_k * h_opt(n, N)
     common = dict(layout=layout, process=process, meas=meas, rng=rng, N=N,
@@ -174,7 +181,7 @@ def build_particle_filter(name: str, scenario: Scenario, rng: np.random.Generato
                           actuator_jump_state=jm and est.actuator_sentinel == "consistent", **common)
 
 
-def build_filter(name: str, scenario: Scenario, rng: np.random.Generator,
+def build_filter(name: str, scenario: EstimatorConfig, rng: np.random.Generator,
                  particles: int | None = None, x0: np.ndarray | None = None):
     """The filter called `name` for `scenario` (see the module docstring); returns a `Filter`.
 

@@ -24,23 +24,23 @@ from collections.abc import Callable
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
-from fdir_service.scenario import Scenario
+from fdir_service.estimator_config import EstimatorConfig
 
 NAME = "EKF-GATE"
 
 
-def frozen_fault_scenario(scenario: Scenario) -> Scenario:
-    """The scenario with every fault channel's estimator noise and initial spread set to 0."""
+def frozen_fault_scenario(scenario: EstimatorConfig) -> EstimatorConfig:
+    """The estimator with every fault's process noise and initial spread set to 0."""
     faults = tuple(dataclasses.replace(f, sigma_f=0.0, x0_sigma=0.0) for f in scenario.faults)
-    imm = dataclasses.replace(scenario.estimator.imm, mode1_sigma_f=(0.0,) * len(faults),
+    imm = dataclasses.replace(scenario.settings.imm, mode1_sigma_f=(0.0,) * len(faults),
                               mode0_sigma_f=(0.0,) * len(faults))
-    est = dataclasses.replace(scenario.estimator, imm=imm)
-    return dataclasses.replace(scenario, faults=faults, estimator=est)
+    est = dataclasses.replace(scenario.settings, imm=imm)
+    return dataclasses.replace(scenario, faults=faults, settings=est)
 
 
-def fault_rows(scenario: Scenario) -> list[np.ndarray]:
+def fault_rows(scenario: EstimatorConfig) -> list[np.ndarray]:
     """For each fault channel, the measurement rows whose declaration declares it (bool (m,))."""
-    meas = scenario.sensors.measurements
+    meas = scenario.measurements
     sensor_targets = {f.target for f in scenario.sensor_faults}
     rows = []
     for f in scenario.faults:
@@ -69,13 +69,13 @@ class GatedKF:
 
     name = NAME
 
-    def __init__(self, kf: object, scenario: Scenario) -> None:
+    def __init__(self, kf: object, scenario: EstimatorConfig) -> None:
         self.kf = kf
         self.fault_ids = tuple(f.id for f in scenario.faults)
-        self.gate = scenario.estimator.gating.gate_sigma
-        self.hold_s = scenario.estimator.gating.hold_s
+        self.gate = scenario.settings.gating.gate_sigma
+        self.hold_s = scenario.settings.gating.hold_s
         self._rows = fault_rows(scenario)
-        m = len(scenario.sensors.measurements)
+        m = len(scenario.measurements)
         self.test_ratio = np.zeros(m)              # last frame's ratio per row (NaN: no data)
         self.declared = np.zeros(m, bool)           # row declared faulty
         self.rejected = np.zeros(m, bool)           # row rejected from fusion this frame
@@ -158,7 +158,7 @@ class GatedKF:
         return self.kf.top_particles(k)
 
 
-def build_gating_filter(scenario: Scenario, rng: np.random.Generator, particles: int | None = None,
+def build_gating_filter(scenario: EstimatorConfig, rng: np.random.Generator, particles: int | None = None,
                         x0: np.ndarray | None = None,
                         kf_builder: Callable[..., object] | None = None) -> GatedKF:
     """EKF-GATE for `scenario`, same signature as `factory.build_filter` (particles is ignored).

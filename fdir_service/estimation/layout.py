@@ -1,7 +1,7 @@
 """Fault layout: which extended-state entries are faults, and where each one acts (SPEC section 5).
 
 The extended state is x = [z (5,), f (nf,)] with z = [p_d, u, w, theta, q] and one fault entry
-per scenario fault channel, in the scenario file's order. A sensor fault adds to one measurement
+per monitored fault, in the estimator file's order. A sensor fault adds to one measurement
 row; an actuator fault adds to one input (it enters the dynamics like that input).
 """
 
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fdir_service.scenario import ACTUATORS, Scenario
+from fdir_service.estimator_config import ACTUATORS, EstimatorConfig
 
 N_AIRFRAME = 5
 """Airframe states in the extended state: [p_d, u, w, theta, q]."""
@@ -22,7 +22,7 @@ class FaultLayout:
     """Fault channels of an extended state.
 
     fault_ids, kinds ("sensor" | "actuator"), targets (measurement or input name) per fault;
-    measurements: the scenario's measurement names (row order of the measurement model).
+    measurements: the estimator's measurement rows (row order of the measurement model).
     """
 
     fault_ids: tuple[str, ...]
@@ -31,9 +31,10 @@ class FaultLayout:
     measurements: tuple[str, ...]
 
     @classmethod
-    def from_scenario(cls, scenario: Scenario) -> FaultLayout:
-        return cls(tuple(f.id for f in scenario.faults), tuple(f.kind for f in scenario.faults),
-                   tuple(f.target for f in scenario.faults), tuple(scenario.sensors.measurements))
+    def from_estimator(cls, config: EstimatorConfig) -> FaultLayout:
+        """The layout of an estimator's monitored faults over its measurement rows."""
+        return cls(tuple(f.id for f in config.faults), tuple(f.kind for f in config.faults),
+                   tuple(f.target for f in config.faults), tuple(config.measurements))
 
     @property
     def nf(self) -> int:

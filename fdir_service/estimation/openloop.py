@@ -20,7 +20,7 @@ import numpy as np
 
 from fdir_service.estimation.factory import build_filter
 from fdir_service.estimation.synthetic import generate
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 
 THESIS_TABLES = Path("/work/shared/thesis_tables.json")
 INSTANTS = (10.05, 20.05, 30.05, 40.05)

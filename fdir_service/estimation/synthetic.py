@@ -17,7 +17,7 @@ from fdir_service.airframe.linearize import linear_model
 from fdir_service.airframe.params import load_airframe
 from fdir_service.estimation.layout import N_AIRFRAME
 from fdir_service.estimation.measurement import MEASURED_STATE
-from fdir_service.scenario import ACTUATORS, FaultChannel, Scenario
+from sim_bridge.scenario import ACTUATORS, FaultChannel, Scenario
 
 
 def fault_value(fault: FaultChannel, t: np.ndarray) -> np.ndarray:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 from sim_bridge.simulate import run
 
 

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from fdir_service.errors import ConfigError
-from fdir_service.scenario import SCENARIO_IDS, load_scenario
+from sim_bridge.scenario import SCENARIO_IDS, load_scenario
 
 
 def add_parser(subparsers) -> None:

@@ -112,7 +112,7 @@ class _Receiver:
 def run(args: argparse.Namespace) -> int:
     from fdir_service.daemon import open_link
     from fdir_service.errors import ConfigError
-    from fdir_service.scenario import load_scenario
+    from sim_bridge.scenario import load_scenario
     from sim_bridge.mavlink_bridge import AutopilotLink, LossyLink
     from sim_bridge.simulate import SimStepper, default_autopilot
 

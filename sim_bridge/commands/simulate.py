@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from fdir_service.scenario import load_scenario
+from sim_bridge.scenario import load_scenario
 from sim_bridge.faults import fault_active_intervals
 from sim_bridge.simulate import run
 

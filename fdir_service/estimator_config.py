@@ -1,0 +1,346 @@
+"""Estimator files (`config/estimators/*.toml`): everything the monitor assumes, nothing it cannot know.
+
+An estimator file names its airframe (a file in `config/airframes/`), the operating point it trims
+that airframe at (commanded airspeed and altitude), the measurement rows it uses and the noise it
+assumes on each, the faults it monitors (target, unit, prior amplitude range, process noise,
+transition probabilities), the filter and the settings of its parts, the particle count and the
+seed. It never holds a truth: no true noise, no injected fault, no world. Experiments (the lab)
+take an estimator file by reference and override what they need; the service names one.
+
+Validated on load: an unknown key, a wrong type or an impossible value raises `ConfigError` naming
+the file, the dotted key and what was expected. Units: SI (m, m/s, rad, rad/s, s) except a fault's
+`amplitude_max`, which is in the fault's `unit` in the file and SI once loaded.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fdir_service.errors import ConfigError
+from fdir_service.paths import airframe_path, estimator_path
+from fdir_service.tomltable import (
+    ALL_NON_NEGATIVE,
+    NON_NEGATIVE,
+    POSITIVE,
+    UNIT_INTERVAL,
+    TomlTable,
+    load_toml,
+)
+
+MEASUREMENTS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q")
+"""Measurement rows an estimator may use; SI units (m, m, m/s, m/s, rad, rad/s)."""
+ACTUATORS = ("delta_e", "delta_t")
+"""Inputs a fault may act on: elevator (rad) and throttle (0..1)."""
+UNITS = {"m": 1.0, "m/s": 1.0, "rad": 1.0, "rad/s": 1.0, "deg": math.pi / 180.0,
+         "deg/s": math.pi / 180.0, "1": 1.0}
+"""A fault's display unit -> SI factor (value_SI = value_unit * factor)."""
+INITIALISATIONS = ("trim", "first_frame")
+FILTER_NAMES = ("KF", "IMM-KF", "RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "AJMRPF-thesis",
+                "ARJMRPF-thesis", "EKF-GATE", "bootstrap")  # TODO(merge): from estimation.recipes
+DEFAULT_ESTIMATOR = "aerosonde"
+"""`config/estimators/aerosonde.toml`: what `fdir run` monitors with no arguments."""
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """A monitored additive fault on a measurement row (`kind` sensor) or an input (`kind` actuator).
+
+    sigma_f, x0_sigma: the fault entry's process-noise and initial standard deviations (SI);
+    amplitude_max: half-width of the uniform amplitude prior p(f | jump) on [-a, a] (SI), used by
+    `parts.sentinel_weighting = "prior"`; pi01, pi10: this fault's mode transition probabilities
+    per step (SPEC section 5, thesis eq. 4.11), None = the filter's.
+    """
+
+    id: str
+    target: str
+    kind: str
+    unit: str
+    sigma_f: float
+    x0_sigma: float = 0.0
+    amplitude_max: float | None = None
+    pi01: float | None = None
+    pi10: float | None = None
+
+    @property
+    def unit_scale(self) -> float:
+        """Multiply an SI value by 1/unit_scale to express it in `unit`."""
+        return UNITS[self.unit]
+
+
+@dataclass(frozen=True)
+class ImmSettings:
+    """IMM-KF: per-fault process-noise std (SI) of the fault entries in mode 0 and in mode 1."""
+
+    mode0_sigma_f: tuple[float, ...] = ()
+    mode1_sigma_f: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
+class GatingSettings:
+    """PX4-EKF2-style innovation gating: test ratio = nu^2 / (gate^2 S); faulty if > 1 for hold_s."""
+
+    gate_sigma: float = 5.0
+    hold_s: float = 0.25
+
+
+@dataclass(frozen=True)
+class FilterSettings:
+    """Settings of the filters' parts (SPEC sections 5-6); see docs/estimation.md for each choice."""
+
+    process_model: str = "nonlinear"     # "linear" | "nonlinear"
+    linear_matrices: str = "derived"     # "printed" (thesis) | "derived" (own airframe)
+    sigma_x: tuple[float, ...] = (0.1, 0.1, 0.1, 0.001, 0.002)   # airframe-state process noise (5,)
+    sigma_x_basis: str = "sqrt_second"   # "step": per-step std | "sqrt_second": std = sigma sqrt(dt)
+    x0_sigma: tuple[float, ...] = (1.0, 1.0, 1.0, 0.005, 0.002)  # initial airframe-state std (5,)
+    resample_threshold: float = 0.5      # Gamma: resample when N_eff < Gamma N
+    bandwidth: float | None = None       # h (thesis value); if None, bandwidth_k * h_opt
+    bandwidth_k: float = 0.2
+    resampler: str = "multinomial"       # "multinomial" | "systematic"
+    mode0: str = "forced_zero"           # "forced_zero" | "reset_on_exit"
+    pi01: float = 0.01
+    pi10: float = 0.01
+    saddlepoint_window: int = 3
+    sentinel_weighting: str = "prior"    # "thesis" (Alg. 4.1 as written) | "prior" (p(f | jump) / q(f))
+    jitter: str = "per_mode"             # "global" (one kernel) | "per_mode"
+    adaptive_transition: str = "proposal"  # "thesis" (eq. 6.1) | "proposal" (importance-weighted)
+    actuator_sentinel: str = "consistent"  # "thesis" | "consistent" (B_a dF moves the state)
+    imm: ImmSettings = field(default_factory=ImmSettings)
+    gating: GatingSettings = field(default_factory=GatingSettings)
+
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """Where the estimator linearises its airframe and starts its cloud: the airframe's own trim at
+    the commanded airspeed (m/s) and altitude (m); init "first_frame" starts the cloud on the first
+    frame's measurements instead of the trim state."""
+
+    airspeed_mps: float = 40.0
+    altitude_m: float = 500.0
+    init: str = "trim"
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """A validated estimator file; `doc` is the resolved TOML document (recorded in logs)."""
+
+    id: str
+    airframe: str
+    dt_s: float
+    operating_point: OperatingPoint
+    measurements: tuple[str, ...]
+    sigma: tuple[float, ...]
+    faults: tuple[FaultSpec, ...]
+    filter: str
+    particles: int
+    seed: int
+    settings: FilterSettings
+    doc: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    source: str = ""
+
+    def filter_sigma(self) -> list[float]:
+        """Measurement noise std (m,) the filters assume, in row order (SI)."""
+        return list(self.sigma)
+
+    def state_process_std(self) -> tuple[float, ...]:
+        """Per-step std (5,) of the airframe-state process noise (SI)."""
+        s = self.settings
+        scale = math.sqrt(self.dt_s) if s.sigma_x_basis == "sqrt_second" else 1.0
+        return tuple(v * scale for v in s.sigma_x)
+
+    def transition_probabilities(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """Per-fault (pi01 (nf,), pi10 (nf,)): each fault's own, else the filter's."""
+        s = self.settings
+        return (tuple(s.pi01 if f.pi01 is None else f.pi01 for f in self.faults),
+                tuple(s.pi10 if f.pi10 is None else f.pi10 for f in self.faults))
+
+    @property
+    def sensor_faults(self) -> tuple[FaultSpec, ...]:
+        return tuple(f for f in self.faults if f.kind == "sensor")
+
+    def with_filter(self, name: str | None = None, particles: int | None = None,
+                    seed: int | None = None) -> EstimatorConfig:
+        """The same estimator with another filter, particle count or seed (None: unchanged)."""
+        return dataclasses.replace(
+            self, filter=self.filter if name is None else name,
+            particles=self.particles if particles is None else int(particles),
+            seed=self.seed if seed is None else int(seed))
+
+    def airframe_params(self):
+        """The estimator's own airframe (`AirframeParams`), loaded from its airframe file."""
+        from fdir_service.airframe.params import load_airframe
+
+        return load_airframe(airframe_path(self.airframe))
+
+
+# ----------------------------------------------------------------------------- validation
+
+def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
+    fid = t.take("id", "string")
+    if not fid.isidentifier() or len(fid) > 7:
+        raise ConfigError(f"{t.key('id')}: expected a short identifier (<= 7 chars, for "
+                          f"MAVLink names like pfa_<id>), got {fid!r}")
+    target = t.take("target", "string", choices=rows + ACTUATORS)
+    unit = t.take("unit", "string", choices=tuple(UNITS))
+    amax = t.take("amplitude_max", "number", None, check=POSITIVE)
+    spec = FaultSpec(
+        id=fid, target=target, kind="actuator" if target in ACTUATORS else "sensor", unit=unit,
+        sigma_f=t.take("sigma_f", "number", check=NON_NEGATIVE),
+        x0_sigma=t.take("x0_sigma", "number", 0.0, check=NON_NEGATIVE),
+        amplitude_max=None if amax is None else amax * UNITS[unit],
+        pi01=t.take("pi01", "number", None, check=UNIT_INTERVAL),
+        pi10=t.take("pi10", "number", None, check=UNIT_INTERVAL),
+    )
+    t.finish()
+    return spec
+
+
+def _faults(root: TomlTable, rows: tuple[str, ...]) -> tuple[FaultSpec, ...]:
+    faults = tuple(_fault(ft, rows) for ft in root.tables("faults"))
+    ids = [f.id for f in faults]
+    if len(set(ids)) != len(ids):
+        raise ConfigError(f"faults: fault ids must be unique, got {ids}")
+    return faults
+
+
+def _measurements(root: TomlTable) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    m = root.sub("measurements", required=True)
+    rows = m.take("rows", "strings", choices=MEASUREMENTS)
+    if not rows or len(set(rows)) != len(rows):
+        raise ConfigError(f"{m.key('rows')}: expected a non-empty list without repeats")
+    sig = m.sub("sigma", required=True)
+    sigma = tuple(sig.take(r, "number", check=POSITIVE) for r in rows)
+    sig.finish()
+    m.finish()
+    return rows, sigma
+
+
+def _operating_point(root: TomlTable) -> OperatingPoint:
+    t = root.sub("operating_point")
+    op = OperatingPoint(airspeed_mps=t.take("airspeed_mps", "number", 40.0, check=POSITIVE),
+                        altitude_m=t.take("altitude_m", "number", 500.0),
+                        init=t.take("init", "string", "trim", choices=INITIALISATIONS))
+    t.finish()
+    return op
+
+
+def _five(t: TomlTable, key: str, default: tuple[float, ...]) -> tuple[float, ...]:
+    val = t.take(key, "numbers", default, check=ALL_NON_NEGATIVE)
+    if len(val) != 5:
+        raise ConfigError(f"{t.key(key)}: expected 5 values [p_d, u, w, theta, q], got {len(val)}")
+    return tuple(val)
+
+
+def _per_fault(t: TomlTable, key: str, default: tuple[float, ...], nf: int) -> tuple[float, ...]:
+    val = t.take(key, "numbers", default, check=ALL_NON_NEGATIVE)
+    if len(val) != nf:
+        raise ConfigError(f"{t.key(key)}: expected {nf} values (one per fault), got {len(val)}")
+    return tuple(val)
+
+
+def _imm(f: TomlTable, faults: tuple[FaultSpec, ...]) -> ImmSettings:
+    t = f.sub("imm")
+    nf = len(faults)
+    imm = ImmSettings(mode0_sigma_f=_per_fault(t, "mode0_sigma_f", (0.0,) * nf, nf),
+                      mode1_sigma_f=_per_fault(t, "mode1_sigma_f", tuple(x.sigma_f for x in faults), nf))
+    t.finish()
+    return imm
+
+
+def _gating(f: TomlTable) -> GatingSettings:
+    t = f.sub("gating")
+    g = GatingSettings(gate_sigma=t.take("gate_sigma", "number", 5.0, check=POSITIVE),
+                       hold_s=t.take("hold_s", "number", 0.25, check=NON_NEGATIVE))
+    t.finish()
+    return g
+
+
+_CHOICES = {
+    "process_model": ("linear", "nonlinear"), "linear_matrices": ("printed", "derived"),
+    "sigma_x_basis": ("step", "sqrt_second"), "resampler": ("multinomial", "systematic"),
+    "mode0": ("forced_zero", "reset_on_exit"), "sentinel_weighting": ("thesis", "prior"),
+    "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
+    "actuator_sentinel": ("thesis", "consistent"),
+}
+"""String settings of [parts] and their allowed values (the first field default applies)."""
+
+
+def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
+    f = root.sub("parts")
+    d = FilterSettings()
+    words = {k: f.take(k, "string", getattr(d, k), choices=c) for k, c in _CHOICES.items()}
+    s = FilterSettings(
+        sigma_x=_five(f, "sigma_x", d.sigma_x), x0_sigma=_five(f, "x0_sigma", d.x0_sigma),
+        resample_threshold=f.take("resample_threshold", "number", d.resample_threshold,
+                                  check=UNIT_INTERVAL),
+        bandwidth=f.take("bandwidth", "number", None, check=POSITIVE),
+        bandwidth_k=f.take("bandwidth_k", "number", d.bandwidth_k, check=POSITIVE),
+        pi01=f.take("pi01", "number", d.pi01, check=UNIT_INTERVAL),
+        pi10=f.take("pi10", "number", d.pi10, check=UNIT_INTERVAL),
+        saddlepoint_window=f.take("saddlepoint_window", "integer", d.saddlepoint_window,
+                                  check=POSITIVE),
+        imm=_imm(f, faults), gating=_gating(f), **words)
+    f.finish()
+    return s
+
+
+def _check_prior(settings: FilterSettings, faults: tuple[FaultSpec, ...]) -> None:
+    if settings.sentinel_weighting != "prior":
+        return
+    missing = [f.id for f in faults if f.kind == "sensor" and f.amplitude_max is None]
+    if missing:
+        raise ConfigError(f"parts.sentinel_weighting = \"prior\" needs faults.amplitude_max for "
+                          f"every sensor fault; missing for {missing}")
+
+
+def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> EstimatorConfig:
+    """Validate a parsed estimator document; raise ConfigError naming the first bad key."""
+    root = TomlTable(doc, "")
+    head = dict(
+        id=root.take("id", "string"), airframe=root.take("airframe", "string", "aerosonde"),
+        dt_s=root.take("dt_s", "number", 0.05, check=POSITIVE),
+        filter=root.take("filter", "string", "RJMRPF", choices=FILTER_NAMES),
+        particles=root.take("particles", "integer", 1000, check=POSITIVE),
+        seed=root.take("seed", "integer", 0, check=NON_NEGATIVE))
+    rows, sigma = _measurements(root)
+    faults = _faults(root, rows)
+    settings = _settings(root, faults)
+    _check_prior(settings, faults)
+    op = _operating_point(root)
+    root.finish()
+    return EstimatorConfig(operating_point=op, measurements=rows, sigma=sigma, faults=faults,
+                           settings=settings, doc=copy.deepcopy(doc), source=source, **head)
+
+
+def merge_documents(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    """`base` with `override` laid over it: tables merge key by key, anything else is replaced."""
+    out = copy.deepcopy(base)
+    for key, val in override.items():
+        if isinstance(val, dict) and isinstance(out.get(key), dict):
+            out[key] = merge_documents(out[key], val)
+        else:
+            out[key] = copy.deepcopy(val)
+    return out
+
+
+def estimator_document(name_or_path: str | os.PathLike[str]) -> tuple[dict[str, Any], Path]:
+    """The parsed TOML of an estimator file, by name (`aerosonde`) or path, and its path."""
+    path = estimator_path(name_or_path)
+    return load_toml(path, "estimator file"), path
+
+
+def load_estimator(name_or_path: str | os.PathLike[str] = DEFAULT_ESTIMATOR,
+                   overrides: dict[str, Any] | None = None) -> EstimatorConfig:
+    """Load and validate an estimator file by name or path, with optional overrides laid over it."""
+    doc, path = estimator_document(name_or_path)
+    if overrides:
+        doc = merge_documents(doc, overrides)
+    try:
+        return parse_estimator(doc, str(path))
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None

@@ -1,0 +1,281 @@
+"""Experiment files (`config/experiments/*.toml`): a world, an estimator by reference, the filters.
+
+Only experiments know the truth. One file describes an experiment (the thesis's are SPEC section
+7): `[experiment]` (id, duration, step, the filters to compare and the proposed one), `[world]` (the
+truth airframe and model, the autopilot command, the true sensor noise, the injected faults with
+their time profiles) and `[estimator]`: an estimator file by name (`use`, config/estimators/) with
+the overrides the experiment needs laid over it (`fdir_service.estimator_config`). The lab-only
+key `estimator.noise_from_world = k` sets the estimator's assumed noise to k times the world's
+true sensor noise (the thesis's filters assume 1.5x). Everything is validated on load: an unknown
+key, a wrong type or an impossible value raises `ConfigError` naming the file and key. Units: SI
+(m, m/s, rad, rad/s, s) except a fault profile's `amplitude`, which is in the fault's `unit`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fdir_service.errors import ConfigError
+from fdir_service.estimator_config import (
+    ACTUATORS,
+    FILTER_NAMES,
+    MEASUREMENTS,
+    UNITS,
+    EstimatorConfig,
+    estimator_document,
+    merge_documents,
+    parse_estimator,
+)
+from fdir_service.paths import config_path
+from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, TomlTable, load_toml
+
+PROFILE_SHAPES = ("step", "exponential", "ramp", "intermittent")
+
+
+@dataclass(frozen=True)
+class ProfileComponent:
+    """One additive piece of a fault's time course (values in SI once loaded).
+
+    step: `amplitude` on [start_s, end_s); exponential: amplitude * exp((t - end_s) / tau_s) on
+    [start_s, end_s) (the thesis's 10 e^(t-40) deg is amplitude 10 deg, tau 1 s, end 40 s); ramp:
+    0 at start_s rising linearly to amplitude at end_s; intermittent: amplitude during on_s, then
+    0 during off_s, repeating from start_s until end_s.
+    """
+
+    shape: str
+    start_s: float
+    end_s: float
+    amplitude: float
+    tau_s: float = 1.0
+    on_s: float = 1.0
+    off_s: float = 1.0
+
+
+@dataclass(frozen=True)
+class FaultChannel:
+    """An injected additive fault on a measurement row (`kind` sensor) or an input (`kind` actuator).
+
+    `profile` is its time course in the world (summed components, SI); `unit` is for reports.
+    """
+
+    id: str
+    target: str
+    kind: str
+    unit: str
+    profile: tuple[ProfileComponent, ...]
+
+    @property
+    def unit_scale(self) -> float:
+        """Multiply an SI value by 1/unit_scale to express it in `unit`."""
+        return UNITS[self.unit]
+
+
+@dataclass(frozen=True)
+class TruthConfig:
+    """The world's aircraft: its airframe file, its model and its initial trim (m/s, m)."""
+
+    airframe: str = "aerosonde"
+    model: str = "nonlinear"          # "linear" | "nonlinear"
+    linear_matrices: str = "printed"  # for a linear truth: "printed" | "derived"
+    airspeed_mps: float = 40.0
+    altitude_m: float = 500.0
+
+
+@dataclass(frozen=True)
+class AltitudeStep:
+    t_s: float
+    altitude_m: float
+
+
+@dataclass(frozen=True)
+class CommandConfig:
+    altitude_m: float = 500.0
+    airspeed_mps: float = 40.0
+    altitude_steps: tuple[AltitudeStep, ...] = ()
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """The world's sensors: rows produced and their true noise std per row (SI)."""
+
+    measurements: tuple[str, ...]
+    sigma: dict[str, float]
+    gnss_gauss_markov: bool = False    # eq. 3.29 error model (off in the thesis scenarios)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """An experiment: world (truth, command, sensors, injected faults), estimator, filters."""
+
+    id: str
+    title: str
+    thesis_section: str
+    thesis_table: str
+    duration_s: float
+    dt_s: float
+    truth: TruthConfig
+    command: CommandConfig
+    sensors: SensorConfig
+    faults: tuple[FaultChannel, ...]
+    estimator: EstimatorConfig
+    filters: tuple[str, ...]
+    proposed: str
+    source: str = ""
+
+    @property
+    def steps(self) -> int:
+        """Number of filter steps in the run (duration / dt)."""
+        return int(round(self.duration_s / self.dt_s))
+
+    @property
+    def sensor_faults(self) -> tuple[FaultChannel, ...]:
+        return tuple(f for f in self.faults if f.kind == "sensor")
+
+
+# ----------------------------------------------------------------------------- validation
+
+def _profile(t: TomlTable, scale: float) -> ProfileComponent:
+    shape = t.take("shape", "string", choices=PROFILE_SHAPES)
+    start = t.take("start_s", "number", check=NON_NEGATIVE)
+    end = t.take("end_s", "number", check=POSITIVE)
+    if end <= start:
+        raise ConfigError(f"{t.key('end_s')}: expected a time after start_s ({start}), got {end}")
+    comp = ProfileComponent(
+        shape=shape, start_s=start, end_s=end, amplitude=t.take("amplitude", "number") * scale,
+        tau_s=t.take("tau_s", "number", 1.0, check=POSITIVE),
+        on_s=t.take("on_s", "number", 1.0, check=POSITIVE),
+        off_s=t.take("off_s", "number", 1.0, check=POSITIVE),
+    )
+    t.finish()
+    return comp
+
+
+def _fault(t: TomlTable, measurements: tuple[str, ...]) -> FaultChannel:
+    fid = t.take("id", "string")
+    target = t.take("target", "string", choices=measurements + ACTUATORS)
+    unit = t.take("unit", "string", choices=tuple(UNITS))
+    comps = tuple(_profile(pt, UNITS[unit]) for pt in t.tables("profile"))
+    t.finish()
+    return FaultChannel(id=fid, target=target, kind="actuator" if target in ACTUATORS else "sensor",
+                        unit=unit, profile=comps)
+
+
+def _truth(w: TomlTable) -> TruthConfig:
+    return TruthConfig(
+        airframe=w.take("airframe", "string", "aerosonde"),
+        model=w.take("model", "string", "nonlinear", choices=("linear", "nonlinear")),
+        linear_matrices=w.take("linear_matrices", "string", "printed", choices=("printed", "derived")),
+        airspeed_mps=w.take("airspeed_mps", "number", 40.0, check=POSITIVE),
+        altitude_m=w.take("altitude_m", "number", 500.0))
+
+
+def _command(w: TomlTable, truth: TruthConfig) -> CommandConfig:
+    c = w.sub("command")
+    steps = []
+    for tt in c.tables("altitude_steps"):
+        steps.append(AltitudeStep(tt.take("t_s", "number", check=NON_NEGATIVE),
+                                  tt.take("altitude_m", "number")))
+        tt.finish()
+    command = CommandConfig(
+        altitude_m=c.take("altitude_m", "number", truth.altitude_m),
+        airspeed_mps=c.take("airspeed_mps", "number", truth.airspeed_mps, check=POSITIVE),
+        altitude_steps=tuple(steps))
+    c.finish()
+    return command
+
+
+def _sensors(w: TomlTable) -> SensorConfig:
+    se = w.sub("sensors", required=True)
+    meas = se.take("measurements", "strings", choices=MEASUREMENTS)
+    if not meas or len(set(meas)) != len(meas):
+        raise ConfigError(f"{se.key('measurements')}: expected a non-empty list without repeats")
+    sig_t = se.sub("sigma", required=True)
+    sigma = {m: sig_t.take(m, "number", check=POSITIVE) for m in meas}
+    sig_t.finish()
+    sensors = SensorConfig(measurements=meas, sigma=sigma,
+                           gnss_gauss_markov=se.take("gnss_gauss_markov", "boolean", False))
+    se.finish()
+    return sensors
+
+
+def _world(root: TomlTable) -> tuple[TruthConfig, CommandConfig, SensorConfig, tuple[FaultChannel, ...]]:
+    w = root.sub("world", required=True)
+    truth = _truth(w)
+    command = _command(w, truth)
+    sensors = _sensors(w)
+    faults = tuple(_fault(ft, sensors.measurements) for ft in w.tables("faults"))
+    ids = [f.id for f in faults]
+    if len(set(ids)) != len(ids):
+        raise ConfigError(f"world.faults: fault ids must be unique, got {ids}")
+    w.finish()
+    return truth, command, sensors, faults
+
+
+def _estimator_doc(root: TomlTable, exp_id: str, sensors: SensorConfig) -> dict[str, Any]:
+    """The experiment's estimator document: `use`'s file with the overrides laid over it."""
+    e = root.sub("estimator", required=True)
+    base, _ = estimator_document(e.take("use", "string", "aerosonde"))
+    factor = e.take("noise_from_world", "number", None, check=POSITIVE)
+    doc = merge_documents(base, e.rest())
+    doc["id"] = exp_id
+    if factor is not None:
+        rows = doc.get("measurements", {}).get("rows", [])
+        missing = [r for r in rows if r not in sensors.sigma]
+        if missing:
+            raise ConfigError(f"estimator.noise_from_world: the world has no {missing[0]!r} sensor")
+        doc.setdefault("measurements", {})["sigma"] = {r: sensors.sigma[r] * factor for r in rows}
+    return doc
+
+
+def _check_fault_match(est: EstimatorConfig, faults: tuple[FaultChannel, ...]) -> None:
+    """The campaign scores each monitored fault against the injected one in the same position."""
+    if tuple(f.id for f in est.faults) != tuple(f.id for f in faults):
+        raise ConfigError(f"estimator.faults: experiments score the estimator's faults against the "
+                          f"world's, so the ids must match in order: {[f.id for f in est.faults]} vs "
+                          f"world.faults {[f.id for f in faults]}")
+
+
+def parse_scenario(doc: dict[str, Any], source: str = "<experiment>") -> Scenario:
+    """Validate a parsed experiment document; raise ConfigError naming the first bad key."""
+    root = TomlTable(doc, "")
+    x = root.sub("experiment", required=True)
+    head = dict(id=x.take("id", "string"), title=x.take("title", "string", ""),
+                thesis_section=x.take("thesis_section", "string", ""),
+                thesis_table=x.take("thesis_table", "string", ""),
+                duration_s=x.take("duration_s", "number", 50.0, check=POSITIVE),
+                dt_s=x.take("dt_s", "number", 0.05, check=POSITIVE),
+                filters=x.take("filters", "strings", choices=FILTER_NAMES),
+                proposed=x.take("proposed", "string", choices=FILTER_NAMES))
+    x.finish()
+    if head["proposed"] not in head["filters"]:
+        raise ConfigError(f"experiment.proposed: {head['proposed']!r} must be one of experiment.filters")
+    truth, command, sensors, faults = _world(root)
+    est_doc = _estimator_doc(root, head["id"], sensors)
+    root.finish()
+    est = parse_estimator(est_doc, f"{source} [estimator]")
+    if abs(est.dt_s - head["dt_s"]) > 1e-12:
+        raise ConfigError(f"estimator.dt_s: expected the experiment's step {head['dt_s']}, got {est.dt_s}")
+    _check_fault_match(est, faults)
+    return Scenario(truth=truth, command=command, sensors=sensors, faults=faults, estimator=est,
+                    source=source, **head)
+
+
+def scenario_path(name_or_path: str | Path) -> Path:
+    """An experiment file by id (`ch4` -> config/experiments/ch4.toml) or path."""
+    return config_path("experiments", name_or_path)
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load and validate an experiment by id (`ch4`) or path."""
+    path = scenario_path(name_or_path)
+    doc = load_toml(path, "experiment file")
+    try:
+        return parse_scenario(doc, str(path))
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+SCENARIO_IDS = ("ch4", "ch5a", "ch5b", "ch5c", "ch6")
