@@ -18,16 +18,17 @@ from pathlib import Path
 from fdir_service.pipeline import Pipeline
 from fdir_service.recording import Recorder
 from fdir_service.replay import replay
-from fdir_service.service_config import load_service_config
+from sim_bridge.scenario import experiment_service_config, load_scenario
 
 
 def record_flight(path: Path, filter_name: str, particles: int, seconds: float, seed: int) -> float:
     from sim_bridge.mavlink_bridge import AutopilotLink
     from sim_bridge.simulate import run
 
-    cfg = load_service_config()
-    traj = run(cfg.scenario, seed=seed, seconds=seconds)
-    link = AutopilotLink(cfg.scenario)
+    cfg_world = load_scenario("ch4")   # the thesis ch4 world, monitored with its own estimator
+    cfg = experiment_service_config(cfg_world)
+    traj = run(cfg_world, seed=seed, seconds=seconds)
+    link = AutopilotLink(cfg_world)
     t0 = time.perf_counter()
     with Recorder(path) as rec:
         pipe = Pipeline(cfg, filter_name=filter_name, particles=particles, seed=seed, observers=[rec])

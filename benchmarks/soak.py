@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 from fdir_service.pipeline import Pipeline  # noqa: E402
 from fdir_service.recording import McapLog, Recorder  # noqa: E402
-from fdir_service.service_config import load_service_config  # noqa: E402
+from sim_bridge.scenario import experiment_service_config, load_scenario  # noqa: E402
 
 
 def rss_mb() -> float:
@@ -62,8 +62,9 @@ def soak(frames: int, filter_name: str, particles: int, out_dir: Path, window: i
     from sim_bridge.mavlink_bridge import AutopilotLink
     from sim_bridge.simulate import SimStepper, default_autopilot
 
-    cfg = load_service_config()
-    sc = cfg.scenario
+    cfg_world = load_scenario("ch4")   # the thesis ch4 world, monitored with its own estimator
+    cfg = experiment_service_config(cfg_world)
+    sc = cfg_world
     rec = Recorder(out_dir / "soak.mcap", rotate_bytes=int(cfg.record.rotate_mb * 1e6) or None,
                    rotate_seconds=cfg.record.rotate_s or None)
     pipe = Pipeline(cfg, filter_name=filter_name, particles=particles, seed=seed, observers=[rec])

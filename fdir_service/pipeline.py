@@ -37,10 +37,10 @@ import numpy as np
 
 from fdir_service import __version__
 from fdir_service.estimation.base import Filter, StepOutput
+from fdir_service.estimator_config import EstimatorConfig
 from fdir_service.ingest import AssembledFrame, FrameAssembler
 from fdir_service.mavlink import dialect, dialect_text, new_mavlink
 from fdir_service.publish import Publisher
-from fdir_service.estimator_config import EstimatorConfig
 
 try:  # the measurement -> state map of the filters' measurement model (read only)
     from fdir_service.estimation.measurement import MEASURED_STATE

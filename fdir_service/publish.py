@@ -18,10 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
+from fdir_service.estimator_config import FaultSpec as FaultChannel
 from fdir_service.ingest import AssembledFrame
 from fdir_service.mavlink import MAX_FAULTS, dialect, frame_payload
 from fdir_service.mavlink import pack as fast_pack
-from fdir_service.estimator_config import FaultSpec as FaultChannel
 from fdir_service.service_config import PublishConfig
 
 _EPS_US = 1  # frame-time comparisons in us

@@ -6,8 +6,8 @@ A mapped value is `raw * scale + offset`, then a transform: `none`, `pressure_to
 (linear from [pwm_min, pwm_max] us to [min, max] in SI; clipped to that range). The estimator
 file named in `[service] estimator` (`config/estimators/`, default `aerosonde`) supplies the
 airframe, the filter and its settings, the measurement rows (in order) and the monitored faults;
-`[service]` may override its filter, particles and seed. Every key is validated on load: an unknown key, a wrong type or
-an impossible value raises `ConfigError` naming the key.
+`[service]` may override its filter, particles and seed. Every key is validated on load: an
+unknown key, a wrong type or an impossible value raises `ConfigError` naming the key.
 """
 
 from __future__ import annotations

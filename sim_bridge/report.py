@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 
 from fdir_service.paths import config_dir
-from sim_bridge.scenario import Scenario
 from sim_bridge.campaign import GATE, Campaign, FilterRuns
 from sim_bridge.faults import channel_value
 from sim_bridge.metrics import (
@@ -25,6 +24,7 @@ from sim_bridge.metrics import (
     rmse_over_runs,
     table_columns,
 )
+from sim_bridge.scenario import Scenario
 
 DEG = 180.0 / math.pi
 STATE_QUANTITIES = (("p_d", "m", 1.0), ("u", "m/s", 1.0), ("w", "m/s", 1.0), ("theta", "deg", DEG),

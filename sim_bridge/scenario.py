@@ -13,8 +13,7 @@ key, a wrong type or an impossible value raises `ConfigError` naming the file an
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -279,3 +278,14 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
 
 SCENARIO_IDS = ("ch4", "ch5a", "ch5b", "ch5c", "ch6")
+
+
+def experiment_service_config(scenario: Scenario, text: str | None = None):
+    """The service config (default file, or `text`) monitoring with the experiment's estimator:
+    how the lab runs `fdir_service` on its own worlds with the thesis's settings."""
+    from fdir_service.service_config import ServiceConfig, default_config_path
+
+    path = default_config_path()
+    return ServiceConfig.from_toml_text(path.read_text() if text is None else text,
+                                        estimator_doc=scenario.estimator.doc,
+                                        source=f"{path} + {scenario.id} estimator")

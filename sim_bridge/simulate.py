@@ -18,9 +18,9 @@ from typing import Any
 import numpy as np
 
 from fdir_service.airframe import AirframeParams, linearize, load_airframe
-from sim_bridge.scenario import Scenario
 from sim_bridge.autopilot import Autopilot
 from sim_bridge.faults import fault_vector
+from sim_bridge.scenario import Scenario
 from sim_bridge.sensors import SensorSuite
 from sim_bridge.world import Truth
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from fdir_service.airframe import load_airframe, printed_model
-from sim_bridge.scenario import AltitudeStep, CommandConfig, load_scenario
 from sim_bridge.autopilot import GAMMA_LIMIT_RAD, Autopilot, design_gains
+from sim_bridge.scenario import AltitudeStep, CommandConfig, load_scenario
 from sim_bridge.simulate import default_autopilot, run
 
 T_STEP = 1.0

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from fdir_service.estimation.base import StepOutput
-from sim_bridge.scenario import load_scenario
 from sim_bridge.campaign import (
     GATE,
     campaign_filters,
@@ -18,6 +17,7 @@ from sim_bridge.campaign import (
     sim_seed,
 )
 from sim_bridge.report import COLUMNS, check_orderings, summarise, write_report
+from sim_bridge.scenario import load_scenario
 
 NOISE = {"JMRPF": 0.5, "IMM-KF": 5.0, GATE: 1.0}
 

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from support import with_parts
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.gating import GatedKF, build_gating_filter, fault_rows, frozen_fault_scenario
@@ -20,7 +21,7 @@ class RandomWalkKF:
         self.nf = len(scenario.faults)
         self.fault_ids = tuple(f.id for f in scenario.faults)
         self.H = H_CH4
-        self.R = np.diag(np.square(scenario.sensors.filter_sigma()))
+        self.R = np.diag(np.square(scenario.filter_sigma()))
         self.Q = np.diag([0.05, 0.01, 0.01, 1e-4, 1e-5]) ** 2
         self.z = np.zeros(5) if x0 is None else np.asarray(x0, float)[:5]
         self.P = np.eye(5)
@@ -61,7 +62,7 @@ def ch4():
 
 def run_gate(scenario, bias_row, bias, on, off, seed=3, steps=600):
     rng = np.random.default_rng(seed)
-    gate = build_gating_filter(scenario, rng, kf_builder=builder)
+    gate = build_gating_filter(scenario.estimator, rng, kf_builder=builder)
     sig = np.array([scenario.sensors.sigma[m] for m in scenario.sensors.measurements])
     truth_y = H_CH4 @ np.zeros(5)
     declared, zhat, prob = [], [], []
@@ -79,14 +80,14 @@ def run_gate(scenario, bias_row, bias, on, off, seed=3, steps=600):
 
 
 def test_frozen_scenario_and_fault_rows(ch4):
-    frozen = frozen_fault_scenario(ch4)
+    frozen = frozen_fault_scenario(ch4.estimator)
     assert [f.sigma_f for f in frozen.faults] == [0.0, 0.0]
-    assert ch4.faults[0].sigma_f == 0.08  # the original is untouched
-    rows = fault_rows(ch4)
+    assert ch4.estimator.faults[0].sigma_f == 0.08  # the original is untouched
+    rows = fault_rows(ch4.estimator)
     np.testing.assert_array_equal(rows[0], [1, 0, 0, 0, 0, 0])
     np.testing.assert_array_equal(rows[1], [0, 1, 0, 0, 0, 0])
     ch5c = load_scenario("ch5c")  # elevator (actuator) fault: any row but the faulted q sensor
-    np.testing.assert_array_equal(fault_rows(ch5c)[0], [1, 1, 1, 1, 0])
+    np.testing.assert_array_equal(fault_rows(ch5c.estimator)[0], [1, 1, 1, 1, 0])
 
 
 def test_gate_declares_after_hold_rejects_and_clears(ch4):
@@ -94,7 +95,7 @@ def test_gate_declares_after_hold_rejects_and_clears(ch4):
     declared, zhat, prob = run_gate(ch4, bias_row=1, bias=30.0, on=10.0, off=20.0)
     t = 0.05 * np.arange(1, len(declared) + 1)
     first = t[np.argmax(declared[:, 1])]
-    assert first == pytest.approx(10.0 + ch4.estimator.gating.hold_s, abs=1e-6)
+    assert first == pytest.approx(10.0 + ch4.estimator.settings.gating.hold_s, abs=1e-6)
     assert declared[(t >= 10.3) & (t < 20.0), 1].all()
     assert not declared[t >= 20.5, 1].any()          # cleared once the fault is gone
     assert not declared[:, [0, 2, 3, 4, 5]].any()    # isolated to the barometer row
@@ -107,8 +108,7 @@ def test_ungated_kf_would_be_dragged(ch4):
     """Control for the test above: with an absurdly wide gate nothing is rejected and the
     estimate follows the faulty barometer (so the 3 m bound above is a real check)."""
     import dataclasses
-    wide = dataclasses.replace(ch4, estimator=dataclasses.replace(
-        ch4.estimator, gating=dataclasses.replace(ch4.estimator.gating, gate_sigma=1e3)))
+    wide = with_parts(ch4, gating=dataclasses.replace(ch4.estimator.settings.gating, gate_sigma=1e3))
     declared, zhat, _ = run_gate(wide, bias_row=1, bias=30.0, on=10.0, off=20.0)
     assert not declared.any()
     assert np.max(np.abs(zhat[:, 0])) > 10.0
@@ -120,7 +120,7 @@ def test_gate_has_few_false_alarms_fault_free(ch4):
 
 
 def test_gated_kf_honours_protocol(ch4):
-    g = GatedKF(RandomWalkKF(ch4, None), ch4)
+    g = GatedKF(RandomWalkKF(ch4.estimator, None), ch4.estimator)
     assert g.name == "EKF-GATE" and g.fault_ids == ("gnss", "baro")
     parts, w = g.top_particles(20)
     assert parts.shape[1] == 7 and w.sum() == pytest.approx(1.0)
@@ -135,7 +135,7 @@ def test_gate_on_the_project_kf_in_closed_loop(ch4):
     the faulty sensors (measured here: ~30 m off at 25 s); the thesis's ambiguity case."""
     from sim_bridge.simulate import run
 
-    gate = build_gating_filter(ch4, np.random.default_rng(0))
+    gate = build_gating_filter(ch4.estimator, np.random.default_rng(0))
     traj = run(ch4, 11, nav=gate.step)
     t = traj.t
     p = np.array([o.fault_probability for o in traj.outputs])
@@ -159,7 +159,7 @@ def test_fast_paths_equal_the_generic_snapshot_path():
     sc = load_scenario("ch4")
     outs = []
     for pre, xp in ((True, True), (False, True), (False, False)):
-        gate = build_gating_filter(sc, np.random.default_rng(0))
+        gate = build_gating_filter(sc.estimator, np.random.default_rng(0))
         assert gate._xp and gate._pre
         gate._pre, gate._xp = pre, xp
         traj = run(sc, 5, seconds=30.0, nav=gate.step)

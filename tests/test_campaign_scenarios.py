@@ -13,10 +13,10 @@ import json
 
 import pytest
 
-from sim_bridge.scenario import load_scenario
 from sim_bridge.campaign import GATE, run_campaign
 from sim_bridge.cli import main as sim_bridge_main
 from sim_bridge.report import COLUMNS, check_orderings, summarise
+from sim_bridge.scenario import load_scenario
 
 ORDER_SETTINGS = {"ch4": (6, 1000), "ch5a": (6, 600)}   # (runs, particles)
 SEED = 0
@@ -24,7 +24,7 @@ SEED = 0
 
 def _check_structure(doc, scenario):
     assert doc["scenario"] == scenario.id
-    assert set(doc["filters"]) == set(scenario.estimator.filters) | {GATE}
+    assert set(doc["filters"]) == set(scenario.filters) | {GATE}
     faults = [f.id for f in scenario.faults]
     for name, fd in doc["filters"].items():
         assert set(fd["rmse"]) == {"p_d", "u", "w", "theta", "q"} | {f"f_{i}" for i in faults}

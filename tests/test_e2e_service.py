@@ -1,6 +1,7 @@
 """End to end, through real UDP sockets on loopback: `sim-bridge fly` -> `fdir run` -> a pymavlink
 ground-station listener (issue 5 acceptance). Both programs run as real subprocesses, lockstep
-(`--speed 0`), ch4 scenario (GNSS altitude +50 m on 10-30 s, baro +30 m on 20-40 s)."""
+(`--speed 0`), the ch4 world (GNSS altitude +50 m on 10-30 s, baro +30 m on 20-40 s) monitored by
+`fdir run` with its defaults (the Aerosonde estimator, which knows nothing of the world)."""
 
 from __future__ import annotations
 
@@ -71,7 +72,10 @@ def test_gnss_fault_declared_and_estimated_over_the_wire(truth_nav_flight):
     _, p = gs.series("pf_gnss")
     win = (t >= onset + 2.0) & (t < 25.0)
     assert win.sum() >= 100  # 10 Hz NAMED_VALUE_FLOAT
-    assert np.all(np.abs(f[win] - 50.0) < 5.0), np.abs(f[win] - 50.0).max()
+    # the default estimator (config/estimators/aerosonde.toml, RJMRPF, four monitored faults; not
+    # ch4's thesis settings): offline on this world, seeds 0-3, rms error 2.1-2.4 m, max 6-8 m
+    err = f[win] - 50.0
+    assert np.sqrt(np.mean(err**2)) < 3.0 and np.abs(err).max() < 10.0, (np.sqrt(np.mean(err**2)), err)
     assert np.all(p[win] > 0.9), p[win].min()
     # service heartbeats and the text format
     assert gs.heartbeats >= 5

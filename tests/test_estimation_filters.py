@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from support import with_parts
 
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.factory import build_filter, build_particle_filter
@@ -21,8 +22,10 @@ def _linear_gaussian_scenario():
     """ch4's linear printed model with no faults and no GNSS: a linear-Gaussian problem."""
     sc = load_scenario("ch4")
     meas = ("baro_alt", "u", "w", "theta", "q")
-    sensors = SensorConfig(meas, {m: sc.sensors.sigma[m] for m in meas}, 1.5)
-    return dataclasses.replace(sc, sensors=sensors, faults=())
+    sensors = SensorConfig(meas, {m: sc.sensors.sigma[m] for m in meas})
+    est = dataclasses.replace(sc.estimator, measurements=meas, faults=(),
+                              sigma=tuple(sc.sensors.sigma[m] * 1.5 for m in meas))
+    return dataclasses.replace(sc, sensors=sensors, faults=(), estimator=est)
 
 
 def test_rpf_with_20000_particles_tracks_the_kf_mean():
@@ -42,8 +45,8 @@ def test_rpf_with_20000_particles_tracks_the_kf_mean():
     trim_u = generate(sc, np.random.default_rng(21), 1).u[0]
     u = trim_u + np.random.default_rng(22).normal(0.0, [0.005, 0.01], (150, 2))
     run = generate(sc, np.random.default_rng(21), 150, u=u)
-    kf = build_filter("KF", sc, np.random.default_rng(0))
-    rpf = build_filter("RPF", sc, np.random.default_rng(1), particles=20000)
+    kf = build_filter("KF", sc.estimator, np.random.default_rng(0))
+    rpf = build_filter("RPF", sc.estimator, np.random.default_rng(1), particles=20000)
     assert rpf.process.kind == "linear"
     errs = []
     for k in range(150):
@@ -56,11 +59,11 @@ def test_rpf_with_20000_particles_tracks_the_kf_mean():
     assert errs[:, others].mean(axis=0).max() < 0.05, errs.mean(axis=0)
     assert errs[:, 1].max() < 0.4 and errs[:, 1].mean() < 0.12, errs.max(axis=0)
     # and the check can fail: a KF assuming half the measurement noise drifts away from the RPF
-    kf2 = build_filter("KF", sc, np.random.default_rng(0))
+    kf2 = build_filter("KF", sc.estimator, np.random.default_rng(0))
     kf2.meas.sigma[:] *= 0.3
     kf2.meas.R[:] *= 0.09
     e2 = []
-    rpf2 = build_filter("RPF", sc, np.random.default_rng(1), particles=20000)
+    rpf2 = build_filter("RPF", sc.estimator, np.random.default_rng(1), particles=20000)
     for k in range(40):
         a = kf2.step(run.t[k], run.y[k], run.mask[k], u[k])
         b = rpf2.step(run.t[k], run.y[k], run.mask[k], u[k])
@@ -74,11 +77,11 @@ def test_same_seed_same_bits(name):
     run = generate(sc, np.random.default_rng(4), 40)
     outs = []
     for _ in range(2):
-        f = build_filter(name, sc, np.random.default_rng(99), particles=300)
+        f = build_filter(name, sc.estimator, np.random.default_rng(99), particles=300)
         outs.append(np.array([f.step(run.t[k], run.y[k], run.mask[k], run.u[k]).x_mean
                               for k in range(40)]))
     np.testing.assert_array_equal(outs[0], outs[1])
-    f3 = build_filter(name, sc, np.random.default_rng(100), particles=300)
+    f3 = build_filter(name, sc.estimator, np.random.default_rng(100), particles=300)
     other = np.array([f3.step(run.t[k], run.y[k], run.mask[k], run.u[k]).x_mean for k in range(40)])
     if name not in ("KF", "IMM-KF"):
         assert not np.array_equal(outs[0], other)
@@ -86,10 +89,10 @@ def test_same_seed_same_bits(name):
 
 def _reduced_filter(name: str, sc, keep: np.ndarray, seed: int) -> ParticleFilter:
     """The same filter built on the measurement model of the kept rows only."""
-    full = build_particle_filter(name, sc, np.random.default_rng(seed), particles=400)
+    full = build_particle_filter(name, sc.estimator, np.random.default_rng(seed), particles=400)
     meas = full.meas.reduced(keep)
     layout = FaultLayout(full.layout.fault_ids, full.layout.kinds, full.layout.targets, meas.names)
-    f = build_particle_filter(name, sc, np.random.default_rng(seed), particles=400)
+    f = build_particle_filter(name, sc.estimator, np.random.default_rng(seed), particles=400)
     f.meas = type(meas)(meas.names, meas.H.copy(), meas.sigma.copy())
     f.layout = layout    # sensor rows of the reduced model ("prior" sentinel weighting reads them)
     if f.amplitude is not None:
@@ -103,7 +106,7 @@ def test_masked_step_equals_step_on_reduced_model(name):
     sc = load_scenario("ch5a")    # theta fault; drop the u and w rows (not faulted)
     run = generate(sc, np.random.default_rng(8), 30)
     keep = np.array([True, False, False, True, True])
-    masked = build_particle_filter(name, sc, np.random.default_rng(5), particles=400)
+    masked = build_particle_filter(name, sc.estimator, np.random.default_rng(5), particles=400)
     reduced = _reduced_filter(name, sc, keep, 5)
     for k in range(30):
         y = run.y[k].copy()
@@ -119,7 +122,7 @@ def test_masked_step_equals_step_on_reduced_model(name):
 def test_masked_fault_row_makes_no_sentinels():
     sc = load_scenario("ch5a")
     run = generate(sc, np.random.default_rng(8), 20)
-    f = build_filter("JMRPF", sc, np.random.default_rng(5), particles=2000)
+    f = build_filter("JMRPF", sc.estimator, np.random.default_rng(5), particles=2000)
     mask = np.array([True, True, True, False, True])     # theta row (the faulted one) missing
     for k in range(20):
         y = run.y[k].copy()
@@ -133,7 +136,7 @@ def test_actuator_sentinels_land_near_the_true_elevator_fault():
     """ch5c: elevator +10 deg from 10 s; the measurement-informed amplitude (docs/estimation.md)."""
     sc = load_scenario("ch5c")
     run = generate(sc, np.random.default_rng(1), 300)
-    f = build_filter("RJMRPF", sc, np.random.default_rng(2))
+    f = build_filter("RJMRPF", sc.estimator, np.random.default_rng(2))
     amps, est = [], []
     for k in range(300):
         out = f.step(run.t[k], run.y[k], run.mask[k], run.u[k])
@@ -159,12 +162,12 @@ def test_consistent_actuator_sentinels_carry_the_faults_last_frame_effect():
     frame), so at the first faulty frame (10.05 s, a -21 deg/s pitch-rate response) the elevator
     explains the data, not a pitch-rate-gyro fault. With "thesis" the q-gyro takes that frame."""
     sc = load_scenario("ch5c")
-    assert sc.estimator.actuator_sentinel == "consistent"
+    assert sc.estimator.settings.actuator_sentinel == "consistent"
     run = generate(sc, np.random.default_rng(1), 202)
     results = {}
     for mode in ("consistent", "thesis"):
-        s2 = dataclasses.replace(sc, estimator=dataclasses.replace(sc.estimator, actuator_sentinel=mode))
-        f = build_filter("RJMRPF", s2, np.random.default_rng(2))
+        s2 = with_parts(sc, actuator_sentinel=mode)
+        f = build_filter("RJMRPF", s2.estimator, np.random.default_rng(2))
         for k in range(202):                     # up to t = 10.05 s, the first frame the fault shows
             out = f.step(run.t[k], run.y[k], run.mask[k], run.u[k])
         results[mode] = out
@@ -181,8 +184,8 @@ def test_consistent_actuator_sentinels_take_the_prior_weighting_with_the_amplitu
     airframe state moves with the drawn fault (B_a s_a eps). With "thesis" it keeps Alg. 4.1's
     weighting (an actuator sentinel could not fit the frame it is weighted on)."""
     sc = load_scenario("ch5c")
-    assert sc.faults[0].amplitude_max == pytest.approx(np.radians(20.0))
-    f = build_filter("RJMRPF", sc, np.random.default_rng(2))
+    assert sc.estimator.faults[0].amplitude_max == pytest.approx(np.radians(20.0))
+    f = build_filter("RJMRPF", sc.estimator, np.random.default_rng(2))
     mask = np.ones(5, dtype=bool)
     js, consts = f._sentinel_rows(mask)
     assert js.tolist() == [0, 1]
@@ -201,14 +204,14 @@ def test_consistent_actuator_sentinels_take_the_prior_weighting_with_the_amplitu
     eps = d_fault / consts[0, 0]
     np.testing.assert_allclose(bonus[:5], consts[0, 1] + 0.5 * eps**2)
     assert np.all(X[:, 5:] == X0[:, 5:]) and np.all(bonus[5:] == 0.0)
-    thesis = dataclasses.replace(sc, estimator=dataclasses.replace(sc.estimator, actuator_sentinel="thesis"))
-    g = build_filter("RJMRPF", thesis, np.random.default_rng(2))
+    thesis = with_parts(sc, actuator_sentinel="thesis")
+    g = build_filter("RJMRPF", thesis.estimator, np.random.default_rng(2))
     assert g._sentinel_rows(mask)[0].tolist() == [1]                   # q only
 
 def test_sensor_sentinels_land_at_the_measured_offset():
     sc = load_scenario("ch5a")    # theta +5 deg from 10 s
     run = generate(sc, np.random.default_rng(3), 200)
-    f = build_filter("JMRPF", sc, np.random.default_rng(4))
+    f = build_filter("JMRPF", sc.estimator, np.random.default_rng(4))
     for k in range(200):                          # the last frame, t = 10.0 s, is the first faulty one
         f.step(run.t[k], run.y[k], run.mask[k], run.u[k])
     s = f.sentinels[0]
@@ -227,12 +230,11 @@ def test_rpf_does_not_diverge_along_the_unobservable_direction_of_ch4():
     filter without it blows up (checked: the test can fail).
     """
     sc = load_scenario("ch4")
-    est = dataclasses.replace(sc.estimator, bandwidth=None, bandwidth_k=1.0, resample_threshold=1.0)
-    sc = dataclasses.replace(sc, estimator=est)
+    sc = with_parts(sc, bandwidth=None, bandwidth_k=1.0, resample_threshold=1.0)
     run = generate(sc, np.random.default_rng(6), 1000)
     spreads = {}
     for shrink in (True, False):
-        f = build_filter("RPF", sc, np.random.default_rng(7))
+        f = build_filter("RPF", sc.estimator, np.random.default_rng(7))
         f.shrink = shrink
         spread = []
         for k in range(1000):
@@ -251,7 +253,7 @@ def test_weights_underflow_reinitialises_instead_of_nan():
     sc = load_scenario("ch5a")
     run = generate(sc, np.random.default_rng(1), 10)
     for name in ("RPF", "RJMRPF", "bootstrap"):
-        f = build_filter(name, sc, np.random.default_rng(2), particles=500)
+        f = build_filter(name, sc.estimator, np.random.default_rng(2), particles=500)
         f.step(run.t[0], run.y[0], run.mask[0], run.u[0])
         y = run.y[1].copy()
         y[1] = np.inf                              # a corrupt value slipped through: all weights 0
@@ -271,7 +273,7 @@ def test_outputs_have_the_protocol_shapes():
     sc = load_scenario("ch5c")
     run = generate(sc, np.random.default_rng(1), 3)
     for name in PF_NAMES + ("KF", "IMM-KF"):
-        f = build_filter(name, sc, np.random.default_rng(2), particles=200)
+        f = build_filter(name, sc.estimator, np.random.default_rng(2), particles=200)
         out = f.step(run.t[0], run.y[0], run.mask[0], run.u[0])
         assert f.name == name and f.fault_ids == ("de", "q")
         assert out.x_mean.shape == (7,) and out.x_cov.shape == (7, 7)
@@ -287,7 +289,7 @@ def test_adaptive_filters_report_pfa_pmd_and_transition():
     sc = load_scenario("ch6")
     run = generate(sc, np.random.default_rng(1), 260)
     for name in ("AJMRPF", "ARJMRPF"):
-        f = build_filter(name, sc, np.random.default_rng(2), particles=500)
+        f = build_filter(name, sc.estimator, np.random.default_rng(2), particles=500)
         pfa, pmd, pi01 = [], [], []
         for k in range(260):
             out = f.step(run.t[k], run.y[k], run.mask[k], run.u[k])

@@ -45,7 +45,7 @@ def _xstar(kf) -> np.ndarray:
 def test_kf_equals_filterpy_on_ch4_and_ch5c():
     for name in ("ch4", "ch5c"):   # sensor faults only; actuator + sensor faults (nonlinear truth)
         sc, run, u = _data(name)
-        kf = build_filter("KF", sc, np.random.default_rng(0))
+        kf = build_filter("KF", sc.estimator, np.random.default_rng(0))
         fp = _fp_kalman(kf)
         xs = _xstar(kf)
         fp.x = kf.x - xs
@@ -65,7 +65,7 @@ def test_kf_equals_filterpy_on_ch4_and_ch5c():
 
 def test_imm_equals_filterpy_on_ch4():
     sc, run, u = _data("ch4")
-    imm = build_filter("IMM-KF", sc, np.random.default_rng(0))
+    imm = build_filter("IMM-KF", sc.estimator, np.random.default_rng(0))
     xs = _xstar(imm.filters[0])
     ustar = imm.filters[0].process.model.trim.u
     fps = []
@@ -90,8 +90,8 @@ def test_imm_equals_filterpy_on_ch4():
 
 def test_kf_masked_rows_are_left_out_and_innovation_is_nan_there():
     sc, run, u = _data("ch4")
-    kf = build_filter("KF", sc, np.random.default_rng(0))
-    ref = build_filter("KF", sc, np.random.default_rng(0))
+    kf = build_filter("KF", sc.estimator, np.random.default_rng(0))
+    ref = build_filter("KF", sc.estimator, np.random.default_rng(0))
     mask = np.array([False, True, True, True, True, True])
     y = run.y[0].copy()
     y[0] = np.nan
@@ -111,7 +111,7 @@ def test_kf_runs_on_every_scenario_with_linearised_model():
     for name in ("ch4", "ch5a", "ch5b", "ch5c", "ch6"):
         sc = load_scenario(name)
         run = generate(sc, np.random.default_rng(0), 60)
-        kf = build_filter("KF", sc, np.random.default_rng(0))
+        kf = build_filter("KF", sc.estimator, np.random.default_rng(0))
         assert kf.process.kind == "linear"
         for k in range(60):
             out = kf.step(run.t[k], run.y[k], run.mask[k], run.u[k])
@@ -125,7 +125,7 @@ def test_kf_masked_step_equals_kf_on_reduced_model():
     from fdir_service.estimation.measurement import MeasurementModel
 
     sc, run, u = _data("ch5c")
-    kf = build_filter("KF", sc, np.random.default_rng(0))
+    kf = build_filter("KF", sc.estimator, np.random.default_rng(0))
     keep = np.array([True, False, True, True, False])
     sub = kf.meas.reduced(keep)
     red = KalmanFilter(kf.process, MeasurementModel(sub.names, sub.H.copy(), sub.sigma.copy()),

@@ -16,8 +16,8 @@ def test_covariance_output_off_changes_nothing_else(name):
     fault probabilities, N_eff and the cloud are bit for bit those of the default filter."""
     sc = load_scenario("ch5a")
     run = generate(sc, np.random.default_rng(3), 260)      # across the step fault at 10 s
-    on = build_filter(name, sc, np.random.default_rng(8), particles=300)
-    off = build_filter(name, sc, np.random.default_rng(8), particles=300)
+    on = build_filter(name, sc.estimator, np.random.default_rng(8), particles=300)
+    off = build_filter(name, sc.estimator, np.random.default_rng(8), particles=300)
     off.output_covariance = False
     resampled = 0
     for k in range(len(run.t)):

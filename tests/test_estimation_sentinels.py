@@ -8,20 +8,19 @@ import tomllib
 
 import numpy as np
 import pytest
+from support import with_parts
 
 from fdir_service.errors import ConfigError
 from fdir_service.estimation.correction import kalman_gain
 from fdir_service.estimation.factory import build_particle_filter
 from fdir_service.estimation.layout import N_AIRFRAME
 from fdir_service.estimation.regularize import regularize_per_mode
-from fdir_service.paths import scenario_path
-from sim_bridge.scenario import load_scenario, parse_scenario
+from sim_bridge.scenario import load_scenario, parse_scenario, scenario_path
 
 
 def _ch4(weighting: str = "prior", jitter: str = "per_mode"):
     sc = load_scenario("ch4")
-    return dataclasses.replace(sc, estimator=dataclasses.replace(
-        sc.estimator, sentinel_weighting=weighting, jitter=jitter))
+    return with_parts(sc, sentinel_weighting=weighting, jitter=jitter)
 
 
 # ------------------------------------------------------------------ robust Kalman gain
@@ -70,7 +69,7 @@ def test_ch5c_rjmrpf_60_particles_seed_3_run_1_completes_finite():
 
 def test_diverged_particles_are_dropped_and_the_cloud_reinitialised():
     sc = load_scenario("ch5a")
-    f = build_particle_filter("RJMRPF", sc, np.random.default_rng(0), particles=200)
+    f = build_particle_filter("RJMRPF", sc.estimator, np.random.default_rng(0), particles=200)
     y = (f.meas.H @ f.x_mean)
     mask = np.ones(f.meas.m, dtype=bool)
     u = np.zeros(2)
@@ -94,25 +93,22 @@ def _doc(name: str) -> dict:
 ])
 def test_estimator_choice_keys_reject_unknown_values(sid, key, bad):
     doc = _doc(sid)
-    doc["estimator"][key] = bad
+    doc["estimator"]["parts"][key] = bad
     with pytest.raises(ConfigError, match=key):
         parse_scenario(doc)
 
 
 def test_scenario_keys_validated():
     doc = _doc("ch4")
-    del doc["faults"][1]["amplitude_max"]
+    del doc["estimator"]["faults"][1]["amplitude_max"]
     with pytest.raises(ConfigError, match="amplitude_max"):
         parse_scenario(doc)
     doc = _doc("ch5a")                                # deg in the file, rad once loaded
-    doc["faults"][0]["amplitude_max"] = 90.0
-    for key in ("sentinel_weighting", "jitter"):        # ch5a sets both: check the defaults
-        doc["estimator"].pop(key, None)
+    doc["estimator"]["faults"][0]["amplitude_max"] = 90.0
+    doc["estimator"]["parts"]["jitter"] = "global"
     sc = parse_scenario(doc)
-    assert sc.faults[0].amplitude_max == pytest.approx(np.pi / 2)
-    assert sc.estimator.sentinel_weighting == "thesis" and sc.estimator.jitter == "global"
-    e = sc.estimator                                  # the session-2 departures default to the thesis
-    assert (e.adaptive_transition, e.actuator_sentinel) == ("thesis", "thesis")
+    assert sc.estimator.faults[0].amplitude_max == pytest.approx(np.pi / 2)
+    assert sc.estimator.settings.jitter == "global"
 
 
 # ------------------------------------------------------------------ "prior" sentinel weighting
@@ -120,14 +116,14 @@ def test_prior_weighting_gives_a_glr_threshold():
     """A sentinel is worth sqrt(2 pi) s / L (times exp(eps^2/2) for its draw eps) against a mode-0
     particle's exp(-e^2 / 2 s^2): small innovations lose, large ones win."""
     sc = _ch4()
-    f = build_particle_filter("JMRPF", sc, np.random.default_rng(0), particles=2000)
+    f = build_particle_filter("JMRPF", sc.estimator, np.random.default_rng(0), particles=2000)
     s = f.meas.sigma[0]                               # gnss row, filter sigma 7.5 m
-    L = 2 * sc.faults[0].amplitude_max
+    L = 2 * sc.estimator.faults[0].amplitude_max
     thr = s * np.sqrt(2 * np.log(L / (np.sqrt(2 * np.pi) * s)))
     mask = np.ones(f.meas.m, dtype=bool)
     u = np.zeros(2)
     for offset, expect_high in ((0.5 * thr, False), (2.0 * thr, True)):
-        f = build_particle_filter("JMRPF", sc, np.random.default_rng(1), particles=2000)
+        f = build_particle_filter("JMRPF", sc.estimator, np.random.default_rng(1), particles=2000)
         f.process.propagate = lambda X, u: X                         # static cloud: isolate the jump
         f.q_std[:] = 0.0
         y = f.meas.H @ f.x_mean

@@ -8,17 +8,18 @@ the filter, is configured off here so that the glitch reaches the filter."""
 from __future__ import annotations
 
 import numpy as np
+from support import CH4, ch4_service  # noqa: F401
 from test_hardening_input import Events
 from test_service_helpers import FakeFilter
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.mavlink import new_mavlink
 from fdir_service.pipeline import Pipeline
-from fdir_service.service_config import ServiceConfig, default_config_path
+from fdir_service.service_config import default_config_path
 
-NO_GATE = ServiceConfig.from_toml_text(
+NO_GATE = ch4_service(
     default_config_path().read_text().replace("valid_min = -500.0\nvalid_max = 20000.0\n", "", 1))
-NO_GATE_NO_JUMP = ServiceConfig.from_toml_text(NO_GATE.text.replace(
+NO_GATE_NO_JUMP = ch4_service(NO_GATE.text.replace(
     "max_state_jump = [50.0, 20.0, 20.0, 1.0, 5.0]", "max_state_jump = []", 1))
 
 
@@ -26,7 +27,7 @@ def fly(pipe: Pipeline, frames: int, glitch_frame: int | None, glitch_m: float =
     from sim_bridge.mavlink_bridge import AutopilotLink
     from sim_bridge.simulate import SimStepper, default_autopilot
 
-    sc = pipe.scenario
+    sc = CH4
     st = SimStepper(sc, 1)
     ap = default_autopilot(sc, st.airframe)
     link = AutopilotLink(sc)
@@ -45,10 +46,9 @@ def fly(pipe: Pipeline, frames: int, glitch_frame: int | None, glitch_m: float =
 
 
 def test_gate_drops_the_glitch_by_default():
-    from fdir_service.service_config import load_service_config
 
     assert NO_GATE.measurements[0].max == np.inf
-    pipe = Pipeline(load_service_config(), filter_name="RJMRPF", particles=100, seed=4)
+    pipe = Pipeline(ch4_service(), filter_name="RJMRPF", particles=100, seed=4)
     fly(pipe, 110, 100)
     assert pipe.rejected_counts["gnss_alt out of range"] == 1 and pipe.reinitialisations == 0
 
@@ -228,15 +228,14 @@ def test_max_state_jump_is_validated():
     base = default_config_path().read_text()
     for bad in ("[1.0, 2.0]", "[50.0, 20.0, 20.0, 1.0, -5.0]", '"big"'):
         with pytest.raises(ConfigError, match="health.max_state_jump"):
-            ServiceConfig.from_toml_text(base.replace("max_state_jump = [50.0, 20.0, 20.0, 1.0, 5.0]",
+            ch4_service(base.replace("max_state_jump = [50.0, 20.0, 20.0, 1.0, 5.0]",
                                                       f"max_state_jump = {bad}", 1))
 
 
 def test_pipeline_publishes_adaptive_fields_for_every_adaptive_filter_name():
     # derived from the filter (its jump strategy), not from a list of names
-    from fdir_service.service_config import load_service_config
 
-    cfg = load_service_config()
+    cfg = ch4_service()
     flags = {name: Pipeline(cfg, filter_name=name, particles=50, seed=1).adaptive
              for name in ("AJMRPF", "AJMRPF-thesis", "ARJMRPF-thesis", "JMRPF", "RJMRPF", "KF", "IMM-KF")}
     assert flags == {"AJMRPF": True, "AJMRPF-thesis": True, "ARJMRPF-thesis": True, "JMRPF": False,

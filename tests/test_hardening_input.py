@@ -13,13 +13,13 @@ import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from pymavlink.generator.mavcrc import x25crc
+from support import CH4, ch4_service  # noqa: F401
 from test_service_helpers import autopilot_stream, fake_factory
 
 from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.pipeline import Pipeline
-from fdir_service.service_config import load_service_config
 
-CFG = load_service_config()
+CFG = ch4_service()
 STREAM = autopilot_stream(12.0, seed=4)          # 240 frames of a truth-flown ch4 flight
 PACKETS = [b for _, s, a in STREAM for b in s + a]
 
@@ -188,7 +188,7 @@ def test_non_finite_and_out_of_range_values_never_reach_the_filter(field, value)
     row = "theta" if field == "pitch" else "q"
     assert pipe.rejected_counts[f"{row} out of range"] >= 55
     assert_filter_inputs_finite(filt[0])
-    j = CFG.scenario.sensors.measurements.index(row)
+    j = CH4.sensors.measurements.index(row)
     assert not any(mask[j] for _, _, mask, _ in filt[0].calls)
     assert sum(f"{row} out of range" in t for t in texts(msgs)) == 1      # rate-limited
     assert pipe.frames >= 55
@@ -219,7 +219,7 @@ def test_message_rates_from_a_tenth_to_ten_times_nominal(factor):
     from sim_bridge.simulate import SimStepper, default_autopilot
 
     pipe, filt, ev = fake_pipeline()
-    sc = CFG.scenario
+    sc = CH4
     stepper = SimStepper(sc, 2)
     ap = default_autopilot(sc, stepper.airframe)
     link = AutopilotLink(sc)
@@ -259,7 +259,7 @@ def test_second_system_on_the_link_is_ignored_counted_and_reported():
     other = autopilot_stream(5.0, seed=9)
     from sim_bridge.mavlink_bridge import AutopilotLink
 
-    link2 = AutopilotLink(CFG.scenario, system=2)
+    link2 = AutopilotLink(CH4, system=2)
     intruder = [b for fr, _, _ in other for b in link2.sensor_messages(fr.t, fr.y + 100.0, fr.mask, 90000.0)]
     packets = []
     for i, p in enumerate(PACKETS[:700]):

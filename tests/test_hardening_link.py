@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from support import CH4, ch4_service  # noqa: F401
 from test_hardening_input import PACKETS, run_mutated
 from test_service_helpers import fake_factory
 
@@ -17,7 +18,7 @@ from fdir_service.daemon import Daemon
 from fdir_service.demo import free_udp_port
 from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.pipeline import Pipeline
-from fdir_service.service_config import ServiceConfig, default_config_path, load_service_config
+from fdir_service.service_config import ServiceConfig, default_config_path
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE = default_config_path().read_text()
@@ -60,7 +61,7 @@ def start_daemon(cfg: ServiceConfig, gcs=()):
 
 
 def test_link_loss_is_announced_and_the_service_resumes_cleanly():
-    cfg = ServiceConfig.from_toml_text(BASE.replace("link_timeout_s = 2.0", "link_timeout_s = 0.3"))
+    cfg = ch4_service(BASE.replace("link_timeout_s = 2.0", "link_timeout_s = 0.3"))
     d, th, port = start_daemon(cfg)
     ap = Peer(port)
     try:
@@ -89,7 +90,7 @@ def test_link_loss_is_announced_and_the_service_resumes_cleanly():
 
 def test_binds_only_the_given_addresses_and_answers_only_accepted_senders():
     gcs_port = free_udp_port()
-    d, th, port = start_daemon(load_service_config(), gcs=[f"udpout:127.0.0.1:{gcs_port}"])
+    d, th, port = start_daemon(ch4_service(), gcs=[f"udpout:127.0.0.1:{gcs_port}"])
     ap, stranger = Peer(port), Peer(port)
     try:
         assert d.master.port.getsockname() == ("127.0.0.1", port)
@@ -119,14 +120,14 @@ def test_signed_input_only_from_the_expected_system(tmp_path):
     key = bytes(range(32))
     kf = tmp_path / "key"
     kf.write_text(key.hex())
-    cfg = ServiceConfig.from_toml_text(BASE.replace('key_file = ""', f'key_file = "{kf}"')
+    cfg = ch4_service(BASE.replace('key_file = ""', f'key_file = "{kf}"')
                                        .replace("autopilot_system = 0", "autopilot_system = 1"))
     from test_service_helpers import autopilot_stream
 
     from sim_bridge.mavlink_bridge import AutopilotLink
 
     good = autopilot_stream(2.0, key=key)
-    link2 = AutopilotLink(cfg.scenario, system=2, key=key)     # right key, wrong system
+    link2 = AutopilotLink(CH4, system=2, key=key)     # right key, wrong system
     filters: list = []
     pipe = Pipeline(cfg, filter_factory=fake_factory(filters))
     for i, (fr, s, a) in enumerate(good):
@@ -159,11 +160,11 @@ def test_thirty_percent_packet_loss_still_declares_the_ch4_faults_within_1s():
     from sim_bridge.mavlink_bridge import AutopilotLink, LossyLink
     from sim_bridge.simulate import SimStepper, default_autopilot
 
-    cfg = load_service_config()
+    cfg = ch4_service()
     pipe = Pipeline(cfg, seed=1)        # the configured filter (JMRPF, N = 1000)
-    st = SimStepper(cfg.scenario, 1)
-    ap = default_autopilot(cfg.scenario, st.airframe)
-    link = AutopilotLink(cfg.scenario)
+    st = SimStepper(CH4, 1)
+    ap = default_autopilot(CH4, st.airframe)
+    link = AutopilotLink(CH4)
     lossy = LossyLink(0.3, seed=1)
     out, t_of = [], []
     for k in range(440):                # 22 s: GNSS +50 m from 10 s, baro +30 m from 20 s
@@ -188,7 +189,7 @@ def test_thirty_percent_packet_loss_still_declares_the_ch4_faults_within_1s():
 
 
 def test_daemon_survives_random_and_mutated_bytes_over_udp():
-    d, th, port = start_daemon(load_service_config())
+    d, th, port = start_daemon(ch4_service())
     ap = Peer(port)
     rng = np.random.default_rng(7)
 

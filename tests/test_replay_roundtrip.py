@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from support import CH4, ch4_service  # noqa: F401
 
 from fdir_service.cli import main as fdir_main
 from fdir_service.pipeline import Pipeline
 from fdir_service.recording import McapLog, Recorder, TruthWriter
 from fdir_service.recording import schemas as S
 from fdir_service.replay import compare_identity, replay, score
-from fdir_service.service_config import load_service_config
 
 SECONDS = 20.0
 PARTICLES = 200
@@ -27,8 +27,8 @@ def fly_and_record(tmp_path, filter_name: str = "JMRPF"):
     from sim_bridge.mavlink_bridge import AutopilotLink
     from sim_bridge.simulate import run
 
-    cfg = load_service_config()
-    sc = cfg.scenario
+    cfg = ch4_service()
+    sc = CH4
     traj = run(sc, seed=5, seconds=SECONDS)
     link = AutopilotLink(sc)
     log, truth = tmp_path / "flight.mcap", tmp_path / "truth.mcap"

@@ -18,8 +18,8 @@ BASE = default_config_path().read_text()
 
 def test_default_config():
     c = load_service_config()
-    assert (c.scenario.id, c.filter, c.particles) == ("ch4", "JMRPF", 1000)
-    assert [m.name for m in c.measurements] == list(c.scenario.sensors.measurements)
+    assert (c.estimator.id, c.filter, c.particles, c.seed) == ("aerosonde", "RJMRPF", 1000, 0)
+    assert [m.name for m in c.measurements] == list(c.estimator.measurements)
     assert c.component == 191 and c.frame_period_us == 50_000
     baro = c.measurements[1]
     # hPa -> m (barometric formula)
@@ -28,10 +28,11 @@ def test_default_config():
 
 
 @pytest.mark.parametrize(("old", "new", "key"), [
-    ('particles = 1000', 'particles = 1000\nparticels = 3', "service.particels"),
-    ('particles = 1000', 'particles = "many"', "service.particles"),
-    ('particles = 1000', 'particles = 0', "service.particles"),
-    ('filter = "JMRPF"', 'filter = "XPF"', "service.filter"),
+    ('estimator = "aerosonde"', 'estimator = "aerosonde"\nparticels = 3', "service.particels"),
+    ('estimator = "aerosonde"', 'estimator = "aerosonde"\nparticles = "many"', "service.particles"),
+    ('estimator = "aerosonde"', 'estimator = "aerosonde"\nparticles = 0', "service.particles"),
+    ('estimator = "aerosonde"', 'estimator = "aerosonde"\nfilter = "XPF"', "service.filter"),
+    ('estimator = "aerosonde"', 'estimator = "no-such-estimator"', "no such estimator file"),
     ('rate_hz = 20.0', 'rate_hz = 50.0', "frames.rate_hz"),
     ('p_clear = 0.5', 'p_clear = 0.95', "publish.declare.p_clear"),
     ('field = "alt"', 'field = "altitude"', "measurements.gnss_alt.field"),
@@ -69,7 +70,7 @@ max = 0.5235988''')
 
 def test_cli_exit_status_2_on_bad_config(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
-    bad.write_text(BASE.replace("seed = 0", "seed = -1"))
+    bad.write_text(BASE.replace('estimator = "aerosonde"', 'estimator = "aerosonde"\nseed = -1'))
     assert main(["run", "--config", str(bad), "--duration", "0"]) == 2
     assert "service.seed" in capsys.readouterr().err
 
@@ -88,20 +89,19 @@ def test_scenario_and_service_share_one_reader():
     """Both files go through `fdir_service.tomltable.TomlTable`: same types, coercions and messages."""
     import tomllib
 
-    from fdir_service.paths import scenario_path
-    from sim_bridge.scenario import parse_scenario
+    from sim_bridge.scenario import parse_scenario, scenario_path
 
     scen = tomllib.loads(scenario_path("ch4").read_text())
     # an int is accepted where a number is expected, and becomes a float
-    scen["scenario"]["duration_s"] = 50
+    scen["experiment"]["duration_s"] = 50
     assert type(parse_scenario(scen).duration_s) is float
     c = ServiceConfig.from_toml_text(BASE.replace("max_gap_s = 2.0", "max_gap_s = 3", 1))
     assert c.max_gap_s == 3.0 and type(c.max_gap_s) is float
     # a bool is not a number, and a non-finite number is refused: same message form in both files
     for bad, shown in (("true", "True"), ("inf", "inf")):
-        scen["scenario"]["duration_s"] = tomllib.loads(f"v = {bad}")["v"]
+        scen["experiment"]["duration_s"] = tomllib.loads(f"v = {bad}")["v"]
         with pytest.raises(ConfigError,
-                           match=rf"^scenario\.duration_s: expected a finite number, got {shown}$"):
+                           match=rf"^experiment\.duration_s: expected a finite number, got {shown}$"):
             parse_scenario(scen)
         with pytest.raises(ConfigError, match=rf"frames\.max_gap_s: expected a finite number, got {shown}$"):
             ServiceConfig.from_toml_text(BASE.replace("max_gap_s = 2.0", f"max_gap_s = {bad}", 1))

@@ -8,13 +8,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from support import CH4, ch4_service  # noqa: F401
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.ingest import AssembledFrame
 from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.publish import Publisher
 from sim_bridge.scenario import load_scenario
-from fdir_service.service_config import load_service_config
 
 
 def _outputs(rng, k: int, nf: int, adaptive: bool):
@@ -35,7 +35,7 @@ def _outputs(rng, k: int, nf: int, adaptive: bool):
 
 
 def test_publisher_fast_framing_equals_pymavlink_pack():
-    cfg = load_service_config()
+    cfg = ch4_service()
     faults = load_scenario("ch4").faults
     rng = np.random.default_rng(0)
     for key in (None, bytes(range(32))):
@@ -72,9 +72,9 @@ def test_deferred_recorder_writes_the_same_file(tmp_path):
     from sim_bridge.mavlink_bridge import AutopilotLink
     from sim_bridge.simulate import run
 
-    cfg = load_service_config()
-    traj = run(cfg.scenario, seed=2, seconds=3.0)
-    link = AutopilotLink(cfg.scenario)
+    cfg = ch4_service()
+    traj = run(CH4, seed=2, seconds=3.0)
+    link = AutopilotLink(CH4)
     data = [b"".join(link.sensor_messages(traj.t[k], traj.y[k], traj.mask[k], traj.static_pressure_pa[k]))
             + b"".join(link.actuator_messages(traj.t[k], traj.u[k])) for k in range(len(traj.t))]
     files = []

@@ -4,9 +4,9 @@ of autopilot bytes from the simulator."""
 from __future__ import annotations
 
 import numpy as np
+from support import CH4, ch4_service  # noqa: F401
 
 from fdir_service.estimation.base import StepOutput
-from fdir_service.service_config import load_service_config
 
 
 class FakeFilter:
@@ -47,12 +47,11 @@ def autopilot_stream(seconds: float, seed: int = 1, key: bytes | None = None):
     from sim_bridge.mavlink_bridge import AutopilotLink
     from sim_bridge.simulate import SimStepper, default_autopilot
 
-    cfg = load_service_config()
-    st = SimStepper(cfg.scenario, seed)
-    ap = default_autopilot(cfg.scenario, st.airframe)
-    link = AutopilotLink(cfg.scenario, key=key)
+    st = SimStepper(CH4, seed)
+    ap = default_autopilot(CH4, st.airframe)
+    link = AutopilotLink(CH4, key=key)
     out = []
-    for _ in range(int(round(seconds / cfg.scenario.dt_s))):
+    for _ in range(int(round(seconds / CH4.dt_s))):
         fr = st.frame()
         sens = link.sensor_messages(fr.t, fr.y, fr.mask, fr.static_pressure_pa)
         u = ap.update(fr.t, fr.z_true)

@@ -6,13 +6,13 @@ import math
 
 import numpy as np
 import pytest
+from support import CH4, ch4_service  # noqa: F401
 
 from fdir_service.atmosphere import pressure_from_altitude
 from fdir_service.ingest import FrameAssembler
 from fdir_service.mavlink import dialect
-from fdir_service.service_config import load_service_config
 
-CFG = load_service_config()
+CFG = ch4_service()
 TRIM_U = np.array([-0.083, 0.532])
 
 

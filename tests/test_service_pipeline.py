@@ -3,13 +3,19 @@ signing, bad bytes, observers, and replay determinism with a real particle filte
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
+from support import CH4, ch4_service  # noqa: F401
 from test_service_helpers import autopilot_stream, fake_factory
 
 from fdir_service.mavlink import new_mavlink
 from fdir_service.pipeline import Pipeline
-from fdir_service.service_config import ServiceConfig, default_config_path, load_service_config
+from fdir_service.service_config import (
+    ServiceConfig,  # noqa: F401
+    default_config_path,
+)
 
 KEY = bytes(range(1, 33))
 STREAM = autopilot_stream(14.0)   # ch4 truth flight, GNSS +50 m from 10 s
@@ -17,7 +23,7 @@ STREAM = autopilot_stream(14.0)   # ch4 truth flight, GNSS +50 m from 10 s
 
 def run_pipeline(stream, cfg=None, observers=(), **kw):
     filters: list = []
-    pipe = Pipeline(cfg or load_service_config(), filter_factory=fake_factory(filters),
+    pipe = Pipeline(cfg or ch4_service(), filter_factory=fake_factory(filters),
                     observers=observers, **kw)
     out = []
     for i, (_, sens, acts) in enumerate(stream):
@@ -61,7 +67,7 @@ def test_published_names_timestamps_and_statustext():
 def test_signing_rejects_and_counts_unsigned_and_wrongly_signed_input(tmp_path):
     kf = tmp_path / "key"
     kf.write_text(KEY.hex())
-    cfg = ServiceConfig.from_toml_text(
+    cfg = ch4_service(
         default_config_path().read_text().replace('key_file = ""', f'key_file = "{kf}"'))
     good = autopilot_stream(1.0, key=KEY)
     unsigned = autopilot_stream(1.0)
@@ -82,7 +88,7 @@ def test_signing_rejects_and_counts_unsigned_and_wrongly_signed_input(tmp_path):
 
 def test_garbage_never_crashes_and_is_counted():
     filters: list = []
-    pipe = Pipeline(load_service_config(), filter_factory=fake_factory(filters))
+    pipe = Pipeline(ch4_service(), filter_factory=fake_factory(filters))
     rng = np.random.default_rng(0)
     for i, (_, sens, acts) in enumerate(STREAM[:40]):
         blob = b"".join(sens + acts)
@@ -120,7 +126,7 @@ class Collect:
 
 
 def test_replay_of_recorded_bytes_reproduces_every_estimate_bit_for_bit():
-    cfg = load_service_config()
+    cfg = ch4_service()
     stream = STREAM[:260]
     a = Collect()
     pipe = Pipeline(cfg, filter_name="JMRPF", particles=200, seed=5, observers=[a])
@@ -133,7 +139,7 @@ def test_replay_of_recorded_bytes_reproduces_every_estimate_bit_for_bit():
     assert a.particles == 13 and len(a.est) == 260
     # replay: the "in" bytes, rechunked, through a fresh pipeline rebuilt from the metadata
     rebuilt = ServiceConfig.from_toml_text(a.meta["config"]["service_toml"],
-                                           scenario_text=a.meta["config"]["scenario_toml"])
+                                           estimator_doc=json.loads(a.meta["config"]["estimator_json"]))
     b = Collect()
     replay = Pipeline(rebuilt, filter_name=a.meta["config"]["filter"],
                       particles=int(a.meta["config"]["particles"]), seed=int(a.meta["config"]["seed"]),

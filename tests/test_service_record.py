@@ -7,23 +7,25 @@ import subprocess
 import sys
 from pathlib import Path
 
+from support import CH4, ch4_service  # noqa: F401
+
 from fdir_service.commands.run import recording_path
 from fdir_service.recording import McapLog
-from fdir_service.service_config import ServiceConfig, default_config_path, load_service_config
+from fdir_service.service_config import default_config_path
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE = default_config_path().read_text()
 
 
 def test_record_section_defaults_and_choices(tmp_path):
-    cfg = load_service_config()
+    cfg = ch4_service()
     assert (cfg.record.enabled, cfg.record.directory, cfg.record.rotate_mb, cfg.record.rotate_s) == (
         True, "recordings", 100.0, 3600.0)
     p = recording_path(cfg, None, False)
     assert p.parent == Path("recordings") and p.name.startswith("fdir-") and p.suffix == ".mcap"
     assert recording_path(cfg, tmp_path / "x.mcap", False) == tmp_path / "x.mcap"
     assert recording_path(cfg, None, True) is None
-    off = ServiceConfig.from_toml_text(BASE.replace("enabled = true", "enabled = false"))
+    off = ch4_service(BASE.replace("enabled = true", "enabled = false"))
     assert recording_path(off, None, False) is None
 
 
@@ -35,13 +37,14 @@ def run(args, cwd):
 def test_fdir_run_records_by_default_into_the_configured_directory(tmp_path):
     cfg = tmp_path / "service.toml"
     cfg.write_text(BASE.replace('directory = "recordings"', f'directory = "{tmp_path / "logs"}"')
-                   .replace('scenario = "ch4"', f'scenario = "{ROOT / "config/scenarios/ch4.toml"}"'))
+                   .replace('estimator = "aerosonde"',
+                            f'estimator = "{ROOT / "config/estimators/aerosonde.toml"}"'))
     r = run(["--config", str(cfg), "--duration", "0.2"], tmp_path)
     assert r.returncode == 0, r.stderr
     files = list((tmp_path / "logs").glob("fdir-*.mcap"))
     assert len(files) == 1 and f"recorded {files[0]}" in r.stderr
     log = McapLog(files[0])
-    assert log.mode == "indexed" and log.metadata["config"]["filter"] == "JMRPF"
+    assert log.mode == "indexed" and log.metadata["config"]["filter"] == "RJMRPF"
     # --no-record: nothing new; --record FILE: that file
     assert run(["--config", str(cfg), "--duration", "0.2", "--no-record"], tmp_path).returncode == 0
     assert len(list((tmp_path / "logs").glob("*.mcap"))) == 1
@@ -55,7 +58,7 @@ def test_rotation_settings_reach_the_recorder(tmp_path):
     from fdir_service.pipeline import Pipeline
     from fdir_service.recording import Recorder
 
-    cfg = ServiceConfig.from_toml_text(BASE.replace("rotate_s = 3600.0", "rotate_s = 2.0"))
+    cfg = ch4_service(BASE.replace("rotate_s = 3600.0", "rotate_s = 2.0"))
     rec = Recorder(tmp_path / "r.mcap", rotate_bytes=int(cfg.record.rotate_mb * 1e6) or None,
                    rotate_seconds=cfg.record.rotate_s or None)
     pipe = Pipeline(cfg, filter_factory=fake_factory([]), observers=[rec])

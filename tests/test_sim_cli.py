@@ -38,7 +38,7 @@ def test_simulate_summary_and_plot(tmp_path, capsys):
 
 def test_simulate_bad_scenario_is_a_config_error(capsys):
     assert main(["simulate", "no_such_scenario"]) == 2
-    assert "no such scenario" in capsys.readouterr().err
+    assert "no such experiment file" in capsys.readouterr().err
 
 
 def test_bench_prints_per_step_time(capsys):

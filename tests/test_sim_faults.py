@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from sim_bridge.scenario import FaultChannel, ProfileComponent, load_scenario
 from sim_bridge.faults import channel_value, fault_vector
+from sim_bridge.scenario import FaultChannel, ProfileComponent, load_scenario
 
 DEG = math.pi / 180.0
 
 
 def _ch(*comps, target="theta"):
-    return FaultChannel("f", target, "sensor", "rad", tuple(comps), 0.0)
+    return FaultChannel("f", target, "sensor", "rad", tuple(comps))
 
 
 def test_step():

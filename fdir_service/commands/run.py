@@ -27,7 +27,8 @@ Everything goes back on the autopilot link and to each --gcs endpoint, stamped w
 autopilot's time of the frame it describes. Which message fields feed the filter, signing
 and the publishing rates are set in the service config file; what the monitor assumes (its
 airframe, filter, measurement noise and monitored faults) is set in the estimator file it
-names (default config/estimators/aerosonde.toml); the options below override both. Stop with Ctrl-C or SIGTERM.
+names (default config/estimators/aerosonde.toml); the options below override both.
+Stop with Ctrl-C or SIGTERM.
 """
 
 EPILOG = """\

@@ -116,7 +116,8 @@ def build_kalman(scenario: EstimatorConfig, x0: np.ndarray | None = None, name: 
                         n_eff=float(particles if particles is not None else scenario.particles))
 
 
-def build_imm(scenario: EstimatorConfig, x0: np.ndarray | None = None, particles: int | None = None) -> IMMKalman:
+def build_imm(scenario: EstimatorConfig, x0: np.ndarray | None = None,
+              particles: int | None = None) -> IMMKalman:
     """IMM-KF: mode 0 with imm.mode0_sigma_f and no fault columns in H, mode 1 with mode1_sigma_f."""
     imm = scenario.settings.imm
     f0 = build_kalman(scenario, x0, "IMM-KF mode 0", np.array(imm.mode0_sigma_f), h_fault_columns=False,
@@ -132,7 +133,8 @@ def _process(scenario: EstimatorConfig, layout: FaultLayout):
     lm = estimator_linear_model(scenario)
     if scenario.settings.process_model == "linear":
         return LinearProcess(lm, layout)
-    return NonlinearProcess(_airframe(scenario.airframe), lm.trim.z, lm.trim.u, scenario.dt_s, layout, INTEGRATOR)
+    return NonlinearProcess(_airframe(scenario.airframe), lm.trim.z, lm.trim.u, scenario.dt_s, layout,
+                            INTEGRATOR)
 
 
 def build_particle_filter(name: str, scenario: EstimatorConfig, rng: np.random.Generator,

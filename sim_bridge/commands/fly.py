@@ -112,8 +112,8 @@ class _Receiver:
 def run(args: argparse.Namespace) -> int:
     from fdir_service.daemon import open_link
     from fdir_service.errors import ConfigError
-    from sim_bridge.scenario import load_scenario
     from sim_bridge.mavlink_bridge import AutopilotLink, LossyLink
+    from sim_bridge.scenario import load_scenario
     from sim_bridge.simulate import SimStepper, default_autopilot
 
     if not 0.0 <= args.loss < 1.0:

@@ -6,8 +6,8 @@ import argparse
 
 import numpy as np
 
-from sim_bridge.scenario import load_scenario
 from sim_bridge.faults import fault_active_intervals
+from sim_bridge.scenario import load_scenario
 from sim_bridge.simulate import run
 
 
