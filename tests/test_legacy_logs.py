@@ -34,7 +34,8 @@ def test_legacy_conversion_gives_the_experiment_estimator():
     old = {"scenario": {"id": "ch4", "dt_s": 0.05}, "truth": {"airspeed_mps": 40.0, "altitude_m": 500.0},
            "sensors": {"measurements": ["gnss_alt", "baro_alt"], "sigma": {"gnss_alt": 5.0, "baro_alt": 1.0},
                        "filter_noise_factor": 1.5},
-           "faults": [{"id": "gnss", "target": "gnss_alt", "unit": "m", "sigma_f": 0.08, "amplitude_max": 500.0,
+           "faults": [{"id": "gnss", "target": "gnss_alt", "unit": "m", "sigma_f": 0.08,
+                       "amplitude_max": 500.0,
                        "profile": [{"shape": "step", "start_s": 10.0, "end_s": 30.0, "amplitude": 50.0}]}],
            "estimator": {"filters": ["JMRPF"], "proposed": "JMRPF", "sigma_x": [1.0, 0.1, 0.1, 0.02, 0.002],
                          "x0_sigma": [1.0, 1.0, 1.0, 0.04, 0.01], "sentinel_weighting": "prior"}}
