@@ -215,6 +215,8 @@ def _measurements(root: TomlTable) -> tuple[tuple[str, ...], tuple[float, ...]]:
         raise ConfigError(f"{m.key('rows')}: expected a non-empty list without repeats")
     sig = m.sub("sigma", required=True)
     sigma = tuple(sig.take(r, "number", check=POSITIVE) for r in rows)
+    for other in set(sig.keys()) & set(MEASUREMENTS):     # noise of a sensor not used: allowed
+        sig.take(other, "number", check=POSITIVE)
     sig.finish()
     m.finish()
     return rows, sigma
