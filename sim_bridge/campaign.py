@@ -107,16 +107,20 @@ class RunResult:
 
 
 class _TimedNav:
-    """Wraps filter.step: times it and snapshots the top particles at every whole second."""
+    """Wraps filter.step: maps the world's sensor rows onto the estimator's (`rows` (m_est,), -1:
+    never arrives), times the step and snapshots the top particles at every whole second."""
 
-    def __init__(self, filt, dt: float) -> None:
+    def __init__(self, filt, dt: float, rows: np.ndarray) -> None:
         self.filt = filt
+        self.rows = None if np.array_equal(rows, np.arange(rows.size)) else rows
         self.every = max(1, int(round(1.0 / dt)))
         self.k = 0
         self.seconds = 0.0
         self.top: list[tuple[float, np.ndarray, np.ndarray]] = []
 
     def __call__(self, t, y, mask, u):
+        if self.rows is not None:
+            y, mask = y[self.rows], mask[self.rows] & (self.rows >= 0)
         t0 = time.perf_counter()
         out = self.filt.step(t, y, mask, u)
         self.seconds += time.perf_counter() - t0
@@ -166,7 +170,7 @@ def _run_job(job: Job) -> RunResult:
     filt = builder(job.filter, sc, filter_rng(job.seed, job.run, job.filter), job.particles)
     if hasattr(filt, "output_covariance"):   # a RunResult keeps no covariance: skip computing it
         filt.output_covariance = False
-    nav = _TimedNav(filt, sc.dt_s)
+    nav = _TimedNav(filt, sc.dt_s, sc.estimator_rows())
     traj = simulator(sc, seed, nav=nav)
     outs = traj.outputs
     n = len(outs[0].x_mean)
@@ -183,7 +187,7 @@ def _run_job(job: Job) -> RunResult:
         t=np.asarray(traj.t, float),
         z_true=np.asarray(traj.z, f32),
         z_hat=np.asarray([o.x_mean[:5] for o in outs], f32),
-        f_true=np.asarray(traj.faults, f32).reshape(len(outs), -1),
+        f_true=sc.estimator_fault_truth(np.asarray(traj.faults, f32).reshape(len(outs), -1)),
         f_hat=np.asarray([o.fault_estimate for o in outs], f32).reshape(len(outs), -1),
         prob=np.asarray([o.fault_probability for o in outs], f32).reshape(len(outs), -1),
         n_eff=np.asarray([o.n_eff for o in outs], f32),

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from fdir_service.errors import ConfigError
 from fdir_service.estimator_config import (
     ACTUATORS,
@@ -133,6 +135,22 @@ class Scenario:
     def sensor_faults(self) -> tuple[FaultChannel, ...]:
         return tuple(f for f in self.faults if f.kind == "sensor")
 
+    def estimator_rows(self) -> np.ndarray:
+        """(m_est,) index of each estimator row in the world's sensor rows, -1 where the world has
+        no such sensor (the row then never arrives)."""
+        world = list(self.sensors.measurements)
+        return np.array([world.index(r) if r in world else -1 for r in self.estimator.measurements])
+
+    def estimator_fault_truth(self, world_faults: np.ndarray) -> np.ndarray:
+        """The world's true faults (..., nf_world) as the estimator's faults (..., nf_est), by id;
+        0 for a monitored fault the world does not inject."""
+        ids = [f.id for f in self.faults]
+        out = np.zeros(world_faults.shape[:-1] + (len(self.estimator.faults),), dtype=world_faults.dtype)
+        for j, f in enumerate(self.estimator.faults):
+            if f.id in ids:
+                out[..., j] = world_faults[..., ids.index(f.id)]
+        return out
+
 
 # ----------------------------------------------------------------------------- validation
 
@@ -230,11 +248,13 @@ def _estimator_doc(root: TomlTable, exp_id: str, sensors: SensorConfig) -> dict[
 
 
 def _check_fault_match(est: EstimatorConfig, faults: tuple[FaultChannel, ...]) -> None:
-    """The campaign scores each monitored fault against the injected one in the same position."""
-    if tuple(f.id for f in est.faults) != tuple(f.id for f in faults):
-        raise ConfigError(f"estimator.faults: experiments score the estimator's faults against the "
-                          f"world's, so the ids must match in order: {[f.id for f in est.faults]} vs "
-                          f"world.faults {[f.id for f in faults]}")
+    """Each injected fault is scored against the monitored fault of the same id: a world fault the
+    estimator does not monitor could never be detected (a missed fault, but most likely a typo)."""
+    monitored = {f.id: f.target for f in est.faults}
+    for f in faults:
+        if monitored.get(f.id, f.target) != f.target:
+            raise ConfigError(f"world.faults: {f.id!r} acts on {f.target} but the estimator's "
+                              f"fault {f.id!r} watches {monitored[f.id]}")
 
 
 def parse_scenario(doc: dict[str, Any], source: str = "<experiment>") -> Scenario:
