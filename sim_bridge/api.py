@@ -20,4 +20,5 @@ from sim_bridge.scenario import load_scenario as load_experiment
 from sim_bridge.simulate import SimStepper, Trajectory, default_autopilot, run
 
 __all__ = ["Campaign", "Scenario", "SimStepper", "Trajectory", "default_autopilot",
-           "experiment_service_config", "load_experiment", "run", "run_campaign", "simulate", "summarise", "write_report"]
+           "experiment_service_config", "load_experiment", "run", "run_campaign", "simulate", "summarise",
+           "write_report"]
