@@ -13,7 +13,8 @@ import os
 import numpy as np
 
 from fdir_service.estimation.base import Filter, StepOutput
-from fdir_service.estimator_config import FILTER_NAMES, EstimatorConfig, load_estimator
+from fdir_service.estimation.recipes import FILTER_NAMES
+from fdir_service.estimator_config import EstimatorConfig, load_estimator
 
 __all__ = ["FILTER_NAMES", "EstimatorConfig", "Filter", "StepOutput", "build_estimator", "load_estimator",
            "trim_state", "trim_input"]

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from fdir_service.errors import ConfigError
+from fdir_service.estimation.recipes import FILTER_NAMES
 from fdir_service.paths import airframe_path, estimator_path
 from fdir_service.tomltable import (
     ALL_NON_NEGATIVE,
@@ -41,8 +42,6 @@ UNITS = {"m": 1.0, "m/s": 1.0, "rad": 1.0, "rad/s": 1.0, "deg": math.pi / 180.0,
          "deg/s": math.pi / 180.0, "1": 1.0}
 """A fault's display unit -> SI factor (value_SI = value_unit * factor)."""
 INITIALISATIONS = ("trim", "first_frame")
-FILTER_NAMES = ("KF", "IMM-KF", "RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "AJMRPF-thesis",
-                "ARJMRPF-thesis", "EKF-GATE", "bootstrap")  # TODO(merge): from estimation.recipes
 DEFAULT_ESTIMATOR = "aerosonde"
 """`config/estimators/aerosonde.toml`: what `fdir run` monitors with no arguments."""
 

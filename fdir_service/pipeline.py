@@ -145,7 +145,7 @@ class Pipeline:
         self.mav_out = new_mavlink(self.system or 1, config.component, key=key,
                                    link_id=config.signing_link_id)
         # adaptive filters (AJMRPF, ARJMRPF and their -thesis variants) publish Pfa/Pmd/transitions
-        self.adaptive = bool(getattr(getattr(self.filter, "transition", None), "adaptive", False))
+        self.adaptive = bool(getattr(self.filter, "adaptive", False))
         self.publisher = Publisher(config.publish, self.estimator.faults, self.mav_out, self.adaptive)
         self.assembler = FrameAssembler(config, trim_input(self.estimator))
         self.rejected: Counter[str] = Counter()

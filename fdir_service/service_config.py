@@ -20,10 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from fdir_service.errors import ConfigError
+from fdir_service.estimation.recipes import FILTER_NAMES
 from fdir_service.estimator_config import (
     ACTUATORS,
     DEFAULT_ESTIMATOR,
-    FILTER_NAMES,
     EstimatorConfig,
     load_estimator,
     parse_estimator,

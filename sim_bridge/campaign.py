@@ -48,10 +48,8 @@ def filter_rng(seed: int, run: int, name: str) -> np.random.Generator:
 
 
 def build(name: str, scenario: Scenario, rng: np.random.Generator, particles: int | None = None):
-    """Any filter of the project by name: EKF-GATE from `gating`, the rest from `factory`."""
-    if name == GATE:
-        from fdir_service.estimation.gating import build_gating_filter
-        return build_gating_filter(scenario.estimator, rng, particles=particles)
+    """Any filter of the project by name (fdir_service.estimation.recipes) for the experiment's
+    estimator."""
     from fdir_service.estimation.factory import build_filter
     return build_filter(name, scenario.estimator, rng, particles=particles)
 

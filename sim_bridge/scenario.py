@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from fdir_service.errors import ConfigError
+from fdir_service.estimation.recipes import FILTER_NAMES
 from fdir_service.estimator_config import (
     ACTUATORS,
-    FILTER_NAMES,
     MEASUREMENTS,
     UNITS,
     EstimatorConfig,

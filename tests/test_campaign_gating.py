@@ -5,7 +5,8 @@ import pytest
 from support import with_parts
 
 from fdir_service.estimation.base import StepOutput
-from fdir_service.estimation.gating import GatedKF, build_gating_filter, fault_rows, frozen_fault_scenario
+from fdir_service.estimation.factory import build_gating_filter
+from fdir_service.estimation.gating import GatedKF, fault_rows, frozen_fault_scenario
 from sim_bridge.scenario import load_scenario
 
 H_CH4 = np.array([[-1.0, 0, 0, 0, 0], [-1, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 1, 0, 0],

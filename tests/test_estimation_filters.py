@@ -8,10 +8,8 @@ import numpy as np
 import pytest
 from support import with_parts
 
-from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.factory import build_filter, build_particle_filter
-from fdir_service.estimation.layout import FaultLayout
-from fdir_service.estimation.particle import ParticleFilter
+from fdir_service.estimation.particle import Frame, ParticleFilter
 from fdir_service.estimation.synthetic import generate
 from sim_bridge.scenario import SensorConfig, load_scenario
 
@@ -47,7 +45,7 @@ def test_rpf_with_20000_particles_tracks_the_kf_mean():
     run = generate(sc, np.random.default_rng(21), 150, u=u)
     kf = build_filter("KF", sc.estimator, np.random.default_rng(0))
     rpf = build_filter("RPF", sc.estimator, np.random.default_rng(1), particles=20000)
-    assert rpf.process.kind == "linear"
+    assert rpf.parts.predict.process.kind == "linear"
     errs = []
     for k in range(150):
         a = kf.step(run.t[k], run.y[k], run.mask[k], u[k])
@@ -88,17 +86,12 @@ def test_same_seed_same_bits(name):
 
 
 def _reduced_filter(name: str, sc, keep: np.ndarray, seed: int) -> ParticleFilter:
-    """The same filter built on the measurement model of the kept rows only."""
-    full = build_particle_filter(name, sc.estimator, np.random.default_rng(seed), particles=400)
-    meas = full.meas.reduced(keep)
-    layout = FaultLayout(full.layout.fault_ids, full.layout.kinds, full.layout.targets, meas.names)
-    f = build_particle_filter(name, sc.estimator, np.random.default_rng(seed), particles=400)
-    f.meas = type(meas)(meas.names, meas.H.copy(), meas.sigma.copy())
-    f.layout = layout    # sensor rows of the reduced model ("prior" sentinel weighting reads them)
-    if f.amplitude is not None:
-        f.amplitude = AmplitudePredictor(layout, f.meas, full.amplitude.B_actuator,
-                                         np.sqrt(np.diag(full.amplitude.Qz)))
-    return f
+    """The same filter built for an estimator that has only the kept measurement rows."""
+    est = sc.estimator
+    rows = tuple(r for r, k in zip(est.measurements, keep, strict=True) if k)
+    sigma = tuple(s for s, k in zip(est.sigma, keep, strict=True) if k)
+    reduced = dataclasses.replace(est, measurements=rows, sigma=sigma)
+    return build_particle_filter(name, reduced, np.random.default_rng(seed), particles=400)
 
 
 @pytest.mark.parametrize("name", ["RPF", "RRPF", "JMRPF", "RJMRPF"])
@@ -128,7 +121,7 @@ def test_masked_fault_row_makes_no_sentinels():
         y = run.y[k].copy()
         y[3] = np.nan
         out = f.step(run.t[k], y, mask, run.u[k])
-        assert not f.sentinels.any()
+        assert not f.parts.jump.sentinels.any()
     assert out.fault_probability[0] == 0.0 and np.isfinite(out.x_mean).all()
 
 
@@ -141,12 +134,12 @@ def test_actuator_sentinels_land_near_the_true_elevator_fault():
     for k in range(300):
         out = f.step(run.t[k], run.y[k], run.mask[k], run.u[k])
         if k == 200:                              # the first frame with the fault (t = 10.05 s)
-            was_mode0 = ~f.modes[0] | f.sentinels[0]
-            amps.append(np.median(f.last_amplitude[0, was_mode0]))
-            if f.sentinels[0].any():
-                amps.append(np.median(f.last_amplitude[0, f.sentinels[0]]))
-        if k < 199 and f.sentinels[0].any():      # before the fault the sentinels sit near 0
-            assert abs(np.median(f.last_amplitude[0, f.sentinels[0]])) < np.radians(2.0)
+            was_mode0 = ~f.modes[0] | f.parts.jump.sentinels[0]
+            amps.append(np.median(f.parts.jump.last_amplitude[0, was_mode0]))
+            if f.parts.jump.sentinels[0].any():
+                amps.append(np.median(f.parts.jump.last_amplitude[0, f.parts.jump.sentinels[0]]))
+        if k < 199 and f.parts.jump.sentinels[0].any():      # before the fault the sentinels sit near 0
+            assert abs(np.median(f.parts.jump.last_amplitude[0, f.parts.jump.sentinels[0]])) < np.radians(2.0)
         est.append(out.fault_estimate[0])
     assert np.degrees(amps) == pytest.approx(10.0, abs=1.5)
     # and the filter settles on the elevator fault (11-15 s). (With ch5c's "reset_on_exit"
@@ -186,27 +179,31 @@ def test_consistent_actuator_sentinels_take_the_prior_weighting_with_the_amplitu
     sc = load_scenario("ch5c")
     assert sc.estimator.faults[0].amplitude_max == pytest.approx(np.radians(20.0))
     f = build_filter("RJMRPF", sc.estimator, np.random.default_rng(2))
+    weighting, carry = f.parts.sentinel_weighting, f.parts.jump.carry
+    amp_sigma = f.parts.jump.amplitude.sigma
     mask = np.ones(5, dtype=bool)
-    js, consts = f._sentinel_rows(mask)
+    js, consts = weighting.rows(mask)
     assert js.tolist() == [0, 1]
-    assert consts[0, 0] == pytest.approx(f.amplitude.sigma[0])        # elevator: amplitude sigma
+    assert consts[0, 0] == pytest.approx(amp_sigma[0])                # elevator: amplitude sigma
     assert consts[1, 0] == pytest.approx(f.meas.sigma[4])             # q gyro: row sigma
     assert consts[0, 1] == pytest.approx(0.5 * np.log(2 * np.pi) - np.log(np.radians(40.0))
-                                         + np.log(f.amplitude.sigma[0]))
+                                         + np.log(amp_sigma[0]))
     # one spread: the sentinels' fault and state move together, by s_a eps and B_a s_a eps
-    f.sentinels = np.zeros((2, f.N), dtype=bool)
-    f.sentinels[0, :5] = True
+    sentinels = np.zeros((2, f.N), dtype=bool)
+    sentinels[0, :5] = True
     X = f.X.copy()
     X0 = X.copy()
-    bonus = f._spread_sentinels(X, mask)
+    frame = Frame.of(0.0, np.zeros(5), mask, np.zeros(2), f.meas)
+    bonus = weighting.weigh(X, frame, sentinels, np.random.default_rng(0))
     d_fault = X[5, :5] - X0[5, :5]
-    np.testing.assert_allclose(X[:5, :5] - X0[:5, :5], f._B_act[:, :1] * d_fault, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(X[:5, :5] - X0[:5, :5], carry.B[:, :1] * d_fault, rtol=1e-6, atol=1e-12)
     eps = d_fault / consts[0, 0]
     np.testing.assert_allclose(bonus[:5], consts[0, 1] + 0.5 * eps**2)
     assert np.all(X[:, 5:] == X0[:, 5:]) and np.all(bonus[5:] == 0.0)
     thesis = with_parts(sc, actuator_sentinel="thesis")
     g = build_filter("RJMRPF", thesis.estimator, np.random.default_rng(2))
-    assert g._sentinel_rows(mask)[0].tolist() == [1]                   # q only
+    assert g.parts.sentinel_weighting.rows(mask)[0].tolist() == [1]    # q only
+
 
 def test_sensor_sentinels_land_at_the_measured_offset():
     sc = load_scenario("ch5a")    # theta +5 deg from 10 s
@@ -214,12 +211,12 @@ def test_sensor_sentinels_land_at_the_measured_offset():
     f = build_filter("JMRPF", sc.estimator, np.random.default_rng(4))
     for k in range(200):                          # the last frame, t = 10.0 s, is the first faulty one
         f.step(run.t[k], run.y[k], run.mask[k], run.u[k])
-    s = f.sentinels[0]
+    s = f.parts.jump.sentinels[0]
     assert s.any()
     # A = y_theta - theta_i for the particles that were fault-free: the 5 deg fault plus one
     # measurement-noise draw (true sigma 0.57 deg) and the particle spread
     was_mode0 = ~f.modes[0] | s
-    assert np.degrees(np.median(f.last_amplitude[0, was_mode0])) == pytest.approx(5.0, abs=1.5)
+    assert np.degrees(np.median(f.parts.jump.last_amplitude[0, was_mode0])) == pytest.approx(5.0, abs=1.5)
 
 
 def test_rpf_does_not_diverge_along_the_unobservable_direction_of_ch4():
@@ -235,7 +232,7 @@ def test_rpf_does_not_diverge_along_the_unobservable_direction_of_ch4():
     spreads = {}
     for shrink in (True, False):
         f = build_filter("RPF", sc.estimator, np.random.default_rng(7))
-        f.shrink = shrink
+        f.parts.regulariser.shrink = shrink
         spread = []
         for k in range(1000):
             out = f.step(run.t[k], run.y[k], run.mask[k], run.u[k])

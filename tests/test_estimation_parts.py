@@ -226,19 +226,13 @@ def test_fast_dynamics_equal_the_plain_equations():
     assert np.max(np.abs(derivatives(tr.z, tr.u, p)[1:])) < 1e-9   # trim is an equilibrium
 
 
-def test_rejump_option_moves_mode1_particles_to_the_amplitude():
+def test_no_sentinel_is_placed_when_every_particle_is_already_faulty():
     rng = np.random.default_rng(3)
     N = 100_000
-    modes = np.ones((1, N), bool)                 # everybody already faulty: no sentinel possible
+    modes = np.ones((1, N), bool)
     F = np.full((1, N), 2.0)
     A = np.full((1, N), 30.0)
-    pi01, pi10 = np.array([0.05]), np.array([0.01])
     v = rng.random((1, N))
-    F0, m0 = F.copy(), modes.copy()
-    s = jump(F0, m0, A, np.array([True]), pi01, pi10, v, True)        # thesis: no re-placement
-    assert not s.any() and np.all(F0[m0] == 2.0)
-    s = jump(F, modes, A, np.array([True]), pi01, pi10, v, True, rejump=True)
-    frac = s.mean()
-    assert abs(frac - 0.05) < 5 * math.sqrt(0.05 * 0.95 / N)
-    assert np.all(F[s] == 30.0) and np.all(modes[s])
+    s = jump(F, modes, A, np.array([True]), np.array([0.05]), np.array([0.01]), v, True)
+    assert not s.any() and np.all(F[modes] == 2.0)
     assert np.all(F[~modes] == 0.0) and abs((~modes).mean() - 0.01) < 0.002

@@ -51,7 +51,7 @@ def time_filters(names: tuple[str, ...], N: int, steps: int, warmup: int = 20, s
         start = int(round(7.5 / sc.dt_s))
         if sid not in runs:
             runs[sid] = generate(sc, np.random.default_rng(seed), start + warmup + steps)
-        filters[name] = build_filter(name, sc, np.random.default_rng(seed + 1), particles=N)
+        filters[name] = build_filter(name, sc.estimator, np.random.default_rng(seed + 1), particles=N)
     times = {name: np.empty(steps) for name in names}
     for k in range(start + warmup + steps):
         for name in names:

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from fdir_service.estimator_config import FILTER_NAMES
+from fdir_service.estimation.recipes import FILTER_NAMES
 
 DESCRIPTION = """\
 Run the onboard fault monitor next to an autopilot.

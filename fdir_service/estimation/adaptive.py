@@ -25,6 +25,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.jump import transition_matrices
 
 
@@ -54,8 +55,8 @@ class AdaptiveTransition:
     adaptive = True
 
     def __init__(self, sigma: np.ndarray, window: int = 3, n_alpha: int = 50,
-                 roc: Callable | None = None, pi01: float = 0.01, pi10: float = 0.01,
-                 proposal: bool = False) -> None:
+                 roc: Callable | None = None, pi01: np.ndarray | float = 0.01,
+                 pi10: np.ndarray | float = 0.01, proposal: bool = False) -> None:
         self.sigma = np.asarray(sigma, dtype=float).copy()
         nf = self.sigma.size
         self.window = int(window)
@@ -67,8 +68,8 @@ class AdaptiveTransition:
         self._next = 0
         self._s = np.repeat(self.sigma[:, None], self.window, axis=1)
         self._zero = np.zeros(self.window)
-        self.pi01 = np.full(nf, float(pi01))
-        self.pi10 = np.full(nf, float(pi10))
+        self.pi01 = np.broadcast_to(np.asarray(pi01, dtype=float), (nf,)).copy()
+        self.pi10 = np.broadcast_to(np.asarray(pi10, dtype=float), (nf,)).copy()
         self.proposal = bool(proposal)
         self.model_pi01 = self.pi01.copy()
         """(nf,) the model's fixed pi01, pi10 (the estimator's): the target of the proposal mode."""
@@ -79,6 +80,26 @@ class AdaptiveTransition:
     def matrices(self) -> np.ndarray:
         """(nf, 2, 2) transition matrices in force."""
         return transition_matrices(self.pi01, self.pi10)
+
+    def observe(self, A: np.ndarray, F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> None:
+        """This step's H1 means from the cloud before the jump, then `update` (SPEC section 6).
+
+        A (nf, N) predicted amplitudes, F (nf, N) fault entries, modes (nf, N) bool, w (N,):
+        mu1|0 = weighted mean of A over mode-0 particles, mu1|1 = of f over mode-1 particles.
+        """
+        w1 = modes @ w                       # (nf,) weight in mode 1
+        w0 = 1.0 - w1
+        s0 = (A * ~modes) @ w                # weighted sum of A over mode-0 particles
+        s1 = (F * modes) @ w                 # weighted sum of f over mode-1 particles
+        mu10 = np.where(w0 > 1e-12, s0 / np.maximum(w0, 1e-300), A @ w)
+        mu11 = np.where(w1 > 1e-12, s1 / np.maximum(w1, 1e-300), mu10)
+        self.update(mu10, mu11)
+
+    def annotate(self, out: StepOutput) -> None:
+        """Adds this step's pfa, pmd (nf,) and transition matrices (nf, 2, 2) to the output."""
+        out.pfa = self.pfa.copy()
+        out.pmd = self.pmd.copy()
+        out.transition = self.matrices()
 
     def update(self, mu10: np.ndarray, mu11: np.ndarray) -> None:
         """Push this step's H1 means (nf,) and recompute pfa, pmd, pi01, pi10 (nf,)."""

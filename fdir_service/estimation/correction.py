@@ -4,6 +4,11 @@ From the weighted predicted cloud: x_bar = sum w x_i, y_bar = sum w h(x_i), P_xy
 K = P_xy S^-1. Weights are multiplied by N(y - h(x_i); 0, S) and every particle moves
 x_i <- x_i + K (y - h(x_i)). With the linear measurement model h(x) = H x, P_xy = P H^T and
 P_yy = H P H^T with P the weighted (n, n) covariance of the cloud, computed once.
+
+Parts of the "correction" slot of a recipe (recipes.py): `Likelihood` (weights only, Alg. 2.8)
+and `KalmanCorrection` (every particle corrected, Alg. 5.1-5.2). Both take the predicted cloud
+X (n, N), the prior weights w (N,), the modes (nf, N) and the frame, and return the (N,)
+log-likelihood of each particle.
 """
 
 from __future__ import annotations
@@ -101,11 +106,43 @@ def _spd_inverse(S: np.ndarray, R: np.ndarray, fallback: bool = True) -> np.ndar
     return inv if np.isfinite(inv).all() else None
 
 
-def correct(X: np.ndarray, innovation: np.ndarray, K: np.ndarray) -> None:
-    """Move every particle by the Kalman correction in place: X += K (y - H X) (eq. 5.3)."""
-    X += K @ innovation
-
-
 def gaussian_loglik(innovation: np.ndarray, S_inv: np.ndarray) -> np.ndarray:
     """log N(e_i; 0, S) up to a constant, for innovations (m, N) and S^-1: -0.5 e_i^T S^-1 e_i (N,)."""
     return -0.5 * np.einsum("ij,ij->j", innovation, S_inv @ innovation)
+
+
+def row_loglik(X: np.ndarray, frame) -> np.ndarray:
+    """log N(y; H x_i, R) up to a constant for each particle of X (n, N) on the frame's rows (N,)."""
+    mm = frame.mm
+    if mm.m == 0:
+        return np.zeros(X.shape[1])
+    e = frame.yv[:, None] - mm.H @ X
+    e *= mm.inv_sigma[:, None]
+    return -0.5 * np.einsum("ij,ij->j", e, e)
+
+
+class Likelihood:
+    """No correction: the particles stay where the prediction put them."""
+
+    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame) -> np.ndarray:
+        return row_loglik(X, frame)
+
+
+class KalmanCorrection:
+    """Weights N(y - H x_i; 0, S) and x_i += K (y - H x_i) in place (eq. 5.3-5.9); `pin(X, modes)`
+    puts pinned fault entries back afterwards (the jump's `pin`)."""
+
+    def __init__(self, pin) -> None:
+        self.pin = pin
+
+    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame) -> np.ndarray:
+        mm = frame.mm
+        if mm.m == 0:
+            return np.zeros(X.shape[1])
+        _, P = weighted_mean_cov(X, w)
+        K, S_inv = kalman_gain(P, mm.H, mm.R)
+        innov = frame.yv[:, None] - mm.H @ X
+        ll = gaussian_loglik(innov, S_inv)
+        X += K @ innov
+        self.pin(X, modes)
+        return ll

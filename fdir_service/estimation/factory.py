@@ -1,21 +1,11 @@
-"""Build any filter of the family from a scenario (SPEC sections 5-7).
+"""Build any filter of the family from its recipe and an estimator (SPEC sections 5-7).
 
-`build_filter(name, scenario, rng, particles=None, x0=None)` for "KF", "IMM-KF", "RPF", "RRPF",
-"JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "bootstrap" (a plain bootstrap particle filter on the
-same process model: no jitter, systematic resampling every step) and "EKF-GATE" (delegated to
-`gating.build_gating_filter`). The compositions:
-
-    RPF     = particles + regulariser (Liu-West shrinkage, see regularize.py)
-    RRPF    = RPF + Kalman correction
-    JMRPF   = particles + regulariser + fixed jump (+ amplitude predictor)
-    RJMRPF  = JMRPF + Kalman correction
-    AJMRPF  = JMRPF with the adaptive transition matrix (estimator.adaptive_transition)
-    ARJMRPF = AJMRPF + Kalman correction
-    AJMRPF-thesis, ARJMRPF-thesis = the same with adaptive_transition = "thesis"
-
-Settings come from scenario.estimator and scenario.faults; the filters assume the measurement
-noise scenario.filter_sigma(). KF and IMM-KF always use the linearised model
-(estimator.linear_matrices); the particle filters use estimator.process_model.
+`build_filter(name, estimator, rng, particles=None, x0=None)` looks the name up in
+`recipes.RECIPES` and turns the recipe's slots into part objects with the numbers of the
+estimator's `[parts]` table and fault list. Kalman-type filters are built whole (`build_kalman`,
+`build_imm`, `build_gating_filter`); particle filters from their parts (`particle_parts`).
+KF and IMM-KF always use the linearised model (parts.linear_matrices); the particle filters use
+parts.process_model. The filters assume the estimator's own measurement noise.
 """
 
 from __future__ import annotations
@@ -28,22 +18,22 @@ from fdir_service.airframe.linearize import LinearModel, linear_model
 from fdir_service.airframe.params import AirframeParams, load_airframe
 from fdir_service.estimation.adaptive import AdaptiveTransition
 from fdir_service.estimation.amplitude import AmplitudePredictor
+from fdir_service.estimation.correction import KalmanCorrection, Likelihood
+from fdir_service.estimation.gating import GatedKF, frozen_fault_scenario
 from fdir_service.estimation.imm import IMMKalman
-from fdir_service.estimation.jump import FixedTransition
+from fdir_service.estimation.jump import ActuatorCarry, FixedTransition, MarkovJump, NoCarry, NoJump
 from fdir_service.estimation.kalman import KalmanFilter
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
-from fdir_service.estimation.particle import ParticleFilter
+from fdir_service.estimation.particle import ParticleFilter, Parts
+from fdir_service.estimation.predict import GaussianPredict, ModeGatedPredict
 from fdir_service.estimation.process import LinearProcess, NonlinearProcess
-from fdir_service.estimation.regularize import h_opt
+from fdir_service.estimation.recipes import Recipe, recipe
+from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter, h_opt
+from fdir_service.estimation.resample import BelowEffectiveSize, EveryStep, resampler
+from fdir_service.estimation.sentinels import PriorSentinels, ThesisSentinels, prior_log_constants
 from fdir_service.estimator_config import EstimatorConfig
 
-PARTICLE_FILTERS = ("RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF", "AJMRPF-thesis",
-                    "ARJMRPF-thesis", "bootstrap")
-THESIS_SUFFIX = "-thesis"
-"""AJMRPF-thesis / ARJMRPF-thesis: the adaptive filters with estimator.adaptive_transition forced to
-"thesis" (eq. 6.1 as written), for side-by-side reports when a scenario selects "proposal"."""
-FILTERS = ("KF", "IMM-KF") + PARTICLE_FILTERS
 FAULT_THRESHOLD_SIGMAS = 3.0
 """Mode-free filters (KF, RPF, RRPF, bootstrap) report P(|f_j| > 3 sigma_j), sigma_j the fault's
 residual standard deviation (measurement sigma for a sensor fault)."""
@@ -129,74 +119,137 @@ def build_imm(scenario: EstimatorConfig, x0: np.ndarray | None = None,
     return IMMKalman([f0, f1], M, np.array([1.0, 0.0]))
 
 
-def _process(scenario: EstimatorConfig, layout: FaultLayout):
-    lm = estimator_linear_model(scenario)
-    if scenario.settings.process_model == "linear":
+def _process(estimator: EstimatorConfig, layout: FaultLayout):
+    lm = estimator_linear_model(estimator)
+    if estimator.settings.process_model == "linear":
         return LinearProcess(lm, layout)
-    return NonlinearProcess(_airframe(scenario.airframe), lm.trim.z, lm.trim.u, scenario.dt_s, layout,
+    return NonlinearProcess(_airframe(estimator.airframe), lm.trim.z, lm.trim.u, estimator.dt_s, layout,
                             INTEGRATOR)
 
 
-def build_particle_filter(name: str, scenario: EstimatorConfig, rng: np.random.Generator,
+def _bandwidth(estimator: EstimatorConfig, n: int, N: int) -> float:
+    """h: parts.bandwidth (the thesis's h at estimator.particles, scaled to N as h_opt is), else
+    parts.bandwidth_k h_opt(n, N)."""
+    est = estimator.settings
+    if est.bandwidth is not None:
+        return est.bandwidth * h_opt(n, N) / h_opt(n, estimator.particles)
+    return est.bandwidth_k * h_opt(n, N)
+
+
+def _transition(rec: Recipe, estimator: EstimatorConfig, amp: AmplitudePredictor, roc=None):
+    """The jump's transition strategy: fixed, or adaptive (proposal unless the recipe says thesis)."""
+    pi01, pi10 = (np.array(p) for p in estimator.transition_probabilities())
+    if rec.jump == "fixed":
+        return FixedTransition(pi01, pi10, amp.layout.nf)
+    mode = rec.adaptive_transition if rec.adaptive_transition != "parts" \
+        else estimator.settings.adaptive_transition
+    return AdaptiveTransition(amp.sigma, estimator.settings.saddlepoint_window, roc=roc, pi01=pi01,
+                              pi10=pi10, proposal=mode == "proposal")
+
+
+def _carry(estimator: EstimatorConfig, layout: FaultLayout, process):
+    """ActuatorCarry for parts.actuator_sentinel = "consistent" (and actuator faults), else NoCarry."""
+    act = np.flatnonzero(layout.actuator_input >= 0)
+    if estimator.settings.actuator_sentinel != "consistent" or act.size == 0:
+        return NoCarry()
+    return ActuatorCarry(act, np.asarray(process.B_actuator, dtype=float)[:, act])
+
+
+def _sentinel_weighting(estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
+                        amp: AmplitudePredictor, carry):
+    """PriorSentinels for parts.sentinel_weighting = "prior" where some fault has amplitude_max."""
+    if estimator.settings.sentinel_weighting != "prior":
+        return ThesisSentinels()
+    amax = np.array([f.amplitude_max if f.amplitude_max else np.nan for f in estimator.faults], dtype=float)
+    carried = np.zeros(layout.nf, dtype=bool)
+    carried[list(getattr(carry, "index", {}))] = True
+    log_c = prior_log_constants(amax, layout.sensor_row, carried)
+    if not np.isfinite(log_c).any():
+        return ThesisSentinels()
+    return PriorSentinels(log_c, layout.sensor_row, meas.sigma, amp, carry)
+
+
+def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
+                process, amp: AmplitudePredictor, roc=None):
+    """(jump, sentinel weighting) of the recipe."""
+    if not rec.has_modes:
+        return NoJump(FAULT_THRESHOLD_SIGMAS * amp.sigma), ThesisSentinels()
+    carry = _carry(estimator, layout, process)
+    forced_zero = estimator.settings.mode0 == "forced_zero"
+    jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry)
+    return jump, _sentinel_weighting(estimator, layout, meas, amp, carry)
+
+
+def _regulariser(rec: Recipe, estimator: EstimatorConfig, amp: AmplitudePredictor, h: float):
+    if rec.regularise == "none":
+        return NoJitter()
+    if rec.regularise == "parts" and rec.has_modes and estimator.settings.jitter == "per_mode" \
+            and amp.layout.nf > 0:
+        return PerModeJitter(h, np.where(np.isfinite(amp.sigma), amp.sigma, 0.0) ** 2)
+    return GlobalJitter(h, shrink=rec.regularise == "shrink")
+
+
+def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
+                   q_std: np.ndarray, N: int, roc=None) -> tuple[Parts, AmplitudePredictor]:
+    """The parts of a particle filter of recipe `rec` (and its amplitude predictor)."""
+    est = estimator.settings
+    process = _process(estimator, layout)
+    amp = AmplitudePredictor(layout, meas, process.B_actuator, q_std[:N_AIRFRAME])
+    jump, sentinels = _jump_parts(rec, estimator, layout, meas, process, amp, roc)
+    gated = rec.has_modes and est.mode0 == "forced_zero"
+    every = rec.resample == "every_step"
+    return Parts(
+        predict=(ModeGatedPredict if gated else GaussianPredict)(process, q_std),
+        jump=jump, sentinel_weighting=sentinels,
+        correction=KalmanCorrection(jump.pin) if rec.correction == "kalman" else Likelihood(),
+        resample_due=EveryStep() if every else BelowEffectiveSize(est.resample_threshold),
+        resampler=resampler("systematic" if every else est.resampler),
+        regulariser=_regulariser(rec, estimator, amp, _bandwidth(estimator, layout.n, N)),
+    ), amp
+
+
+def build_particle_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator,
                           particles: int | None = None, x0: np.ndarray | None = None,
                           roc=None) -> ParticleFilter:
-    """One of PARTICLE_FILTERS; roc overrides the saddlepoint ROC search (tests)."""
-    est = scenario.settings
-    layout, meas, q_std, x0_std = _parts(scenario)
-    N = int(particles if particles is not None else scenario.particles)
-    process = _process(scenario, layout)
-    amp = AmplitudePredictor(layout, meas, process.B_actuator, q_std[:N_AIRFRAME])
-    n = layout.n
-    if est.bandwidth is not None:   # the thesis's h at estimator.particles, scaled to N as h_opt is
-        h = est.bandwidth * h_opt(n, N) / h_opt(n, scenario.particles)
-    else:
-        h = est.bandwidth_k * h_opt(n, N)
-    common = dict(layout=layout, process=process, meas=meas, rng=rng, N=N,
-                  x0_mean=_x0(scenario, layout, x0), x0_std=x0_std, q_std=q_std,
-                  fault_threshold=FAULT_THRESHOLD_SIGMAS * amp.sigma)
-    proposal = est.adaptive_transition == "proposal"
-    base = name
-    if name.endswith(THESIS_SUFFIX):
-        base, proposal = name[: -len(THESIS_SUFFIX)], False
-    if name == "bootstrap":
-        return ParticleFilter(name, resampler="systematic", always_resample=True, h=None, **common)
-    jm = base in ("JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF")
-    correction = base in ("RRPF", "RJMRPF", "ARJMRPF")
-    transition = None
-    if base in ("JMRPF", "RJMRPF"):
-        transition = FixedTransition(est.pi01, est.pi10, layout.nf)
-    elif base in ("AJMRPF", "ARJMRPF"):
-        transition = AdaptiveTransition(amp.sigma, est.saddlepoint_window, roc=roc,
-                                        pi01=est.pi01, pi10=est.pi10, proposal=proposal)
-    elif base not in ("RPF", "RRPF"):
-        raise ValueError(f"unknown particle filter {name!r}; expected one of {PARTICLE_FILTERS}")
-    prior_width = None
-    if jm and est.sentinel_weighting == "prior":
-        consistent = est.actuator_sentinel == "consistent"
-        prior_width = np.array([2.0 * f.amplitude_max if f.amplitude_max and (
-            f.kind == "sensor" or consistent) else np.nan for f in scenario.faults])
-    return ParticleFilter(name, transition=transition, amplitude=amp if jm else None,
-                          correction=correction, resampler=est.resampler,
-                          threshold=est.resample_threshold, h=h, shrink=not jm, mode0=est.mode0,
-                          sentinel_prior_width=prior_width,
-                          jitter_per_mode=jm and est.jitter == "per_mode",
-                          actuator_jump_state=jm and est.actuator_sentinel == "consistent", **common)
+    """The particle filter of recipe `name`; roc overrides the saddlepoint ROC search (tests)."""
+    rec = recipe(name)
+    if rec.family != "particle":
+        raise ValueError(f"{name!r} is not a particle filter")
+    layout, meas, q_std, x0_std = _parts(estimator)
+    N = int(particles if particles is not None else estimator.particles)
+    parts, amp = particle_parts(rec, estimator, layout, meas, q_std, N, roc)
+    reinit_std = x0_std.copy()
+    if rec.has_modes:      # a fresh cloud spans at least one frame's amplitude uncertainty
+        reinit_std[N_AIRFRAME:] = np.maximum(reinit_std[N_AIRFRAME:],
+                                             np.where(np.isfinite(amp.sigma), amp.sigma, 0.0))
+    return ParticleFilter(name, layout, meas, parts, rng, N, _x0(estimator, layout, x0), x0_std, reinit_std)
 
 
-def build_filter(name: str, scenario: EstimatorConfig, rng: np.random.Generator,
+def build_gating_filter(estimator: EstimatorConfig, rng: np.random.Generator, particles: int | None = None,
+                        x0: np.ndarray | None = None, kf_builder=None) -> GatedKF:
+    """EKF-GATE: a KF with every fault frozen at 0, wrapped in innovation gating (gating.py).
+
+    kf_builder(name, estimator, rng, particles=None, x0=None) defaults to `build_filter`;
+    particles is ignored (the gate has none).
+    """
+    kf = (kf_builder or build_filter)("KF", frozen_fault_scenario(estimator), rng, x0=x0)
+    return GatedKF(kf, estimator)
+
+
+_BUILDERS = {
+    "kalman": lambda name, est, rng, particles, x0: build_kalman(est, x0, particles=particles),
+    "imm": lambda name, est, rng, particles, x0: build_imm(est, x0, particles),
+    "gated": lambda name, est, rng, particles, x0: build_gating_filter(est, rng, particles, x0),
+    "particle": build_particle_filter,
+}
+
+
+def build_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator,
                  particles: int | None = None, x0: np.ndarray | None = None):
-    """The filter called `name` for `scenario` (see the module docstring); returns a `Filter`.
+    """The filter called `name` (recipes.RECIPES) for `estimator`; returns a `Filter`.
 
     rng drives all of the filter's randomness; particles overrides estimator.particles; x0 (5,)
-    is the initial airframe-state mean (default: the scenario's trim state).
+    is the initial airframe-state mean (default: the estimator's own trim state).
     """
-    if name == "KF":
-        return build_kalman(scenario, x0, particles=particles)
-    if name == "IMM-KF":
-        return build_imm(scenario, x0, particles)
-    if name == "EKF-GATE":
-        from fdir_service.estimation.gating import build_gating_filter
-        return build_gating_filter(scenario, rng, particles, x0)
-    if name in PARTICLE_FILTERS:
-        return build_particle_filter(name, scenario, rng, particles, x0)
-    raise ValueError(f"unknown filter {name!r}; expected one of {FILTERS + ('EKF-GATE',)}")
+    rec = recipe(name)
+    return _BUILDERS[rec.family](name, estimator, rng, particles, x0)

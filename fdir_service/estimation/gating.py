@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Callable
 
 import numpy as np
 
@@ -156,16 +155,3 @@ class GatedKF:
 
     def top_particles(self, k: int = 20) -> tuple[np.ndarray, np.ndarray]:
         return self.kf.top_particles(k)
-
-
-def build_gating_filter(scenario: EstimatorConfig, rng: np.random.Generator, particles: int | None = None,
-                        x0: np.ndarray | None = None,
-                        kf_builder: Callable[..., object] | None = None) -> GatedKF:
-    """EKF-GATE for `scenario`, same signature as `factory.build_filter` (particles is ignored).
-
-    kf_builder(name, scenario, rng, particles=None, x0=None) defaults to `factory.build_filter`.
-    """
-    if kf_builder is None:
-        from fdir_service.estimation.factory import build_filter as kf_builder
-    kf = kf_builder("KF", frozen_fault_scenario(scenario), rng, x0=x0)
-    return GatedKF(kf, scenario)

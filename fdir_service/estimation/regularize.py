@@ -104,9 +104,82 @@ def regularize(X: np.ndarray, P: np.ndarray, h: float, rng: np.random.Generator,
     return X
 
 
+MIN_EFF_PER_STATE = 2.0
+"""A mode pattern whose effective particle count is below this x n borrows the global covariance."""
+
+
+def mode_codes(modes: np.ndarray) -> np.ndarray:
+    """(N,) int64 code of each particle's mode pattern from modes (nf, N) bool: bit j = fault j."""
+    if modes.shape[0] == 1:
+        return modes[0].astype(np.int64)
+    code = np.zeros(modes.shape[1], dtype=np.int64)
+    for j in range(modes.shape[0]):
+        code |= modes[j].astype(np.int64) << j
+    return code
+
+
+def _patterns(code: np.ndarray, nf: int) -> tuple[list[int], list[int]]:
+    """The mode patterns present in code (N,), ascending, and their particle counts."""
+    if nf <= 16:
+        counts = np.bincount(code)
+        groups = np.flatnonzero(counts).tolist()
+        return groups, counts[groups].tolist()
+    groups, counts = np.unique(code, return_counts=True)
+    return groups.tolist(), counts.tolist()
+
+
+def conditioned_on_mode0(P: np.ndarray, off: list[int]) -> np.ndarray:
+    """P (n, n) conditioned on the entries `off` being 0 (Schur complement), those rows and columns
+    zeroed; a new array."""
+    P = P.copy()
+    if off:
+        keep = [i for i in range(P.shape[0]) if i not in off]
+        Poo = P[np.ix_(off, off)]
+        Pko = P[np.ix_(keep, off)]
+        if np.all(np.diag(Poo) > 1e-300):
+            P[np.ix_(keep, keep)] -= Pko @ np.linalg.solve(Poo, Pko.T)
+        P[off, :] = 0.0
+        P[:, off] = 0.0
+    return P
+
+
+class _PatternCovariance:
+    """The kernel covariance (n, n) of each mode pattern of a cloud before resampling."""
+
+    def __init__(self, X_prev: np.ndarray, w_prev: np.ndarray, code_prev: np.ndarray, nf: int,
+                 fault_var_floor: np.ndarray | None) -> None:
+        self.X_prev, self.w_prev, self.code_prev = X_prev, w_prev, code_prev
+        self.nf, self.floor = nf, fault_var_floor
+        self.na = X_prev.shape[0] - nf
+        self.min_eff = MIN_EFF_PER_STATE * X_prev.shape[0]
+        self._global = None
+
+    def __call__(self, g: int) -> np.ndarray:
+        on = [(g >> j) & 1 for j in range(self.nf)]
+        sel = self.code_prev == g
+        wg = self.w_prev[sel]
+        W = wg.sum()
+        if W > 0 and W * W / max(np.dot(wg, wg), 1e-300) >= self.min_eff:
+            Xg = self.X_prev[:, sel]
+            dX = Xg - (Xg @ wg / W)[:, None]
+            P = (dX * (wg / W)) @ dX.T
+        else:
+            P = conditioned_on_mode0(self._global_cov(), [self.na + j for j in range(self.nf) if not on[j]])
+        if self.floor is not None:
+            for j in range(self.nf):
+                if on[j] and P[self.na + j, self.na + j] < self.floor[j]:
+                    P[self.na + j, self.na + j] = self.floor[j]
+        return P
+
+    def _global_cov(self) -> np.ndarray:
+        if self._global is None:
+            dX = self.X_prev - (self.X_prev @ self.w_prev)[:, None]
+            self._global = (dX * self.w_prev) @ dX.T
+        return self._global
+
+
 def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, idx: np.ndarray,
                         modes_prev: np.ndarray, h: float, rng: np.random.Generator,
-                        min_eff: float | None = None,
                         fault_var_floor: np.ndarray | None = None) -> np.ndarray:
     """Jitter a resampled jump-Markov cloud X (n, N) in place with a kernel per mode pattern.
 
@@ -118,77 +191,39 @@ def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, i
     (airframe, fault) correlation of the mode-1 particles, which the global covariance of the
     mixture carries (ch4: p_d with f_gnss and f_baro along the unobservable direction) and which
     would penalise mode 0 at every resample. A pattern whose effective particle count is below
-    min_eff (default 2 n) uses the global covariance conditioned on its mode-0 fault entries being
-    0 (Schur complement) instead.
+    2 n uses the global covariance conditioned on its mode-0 fault entries being 0 instead.
     fault_var_floor (nf,): the kernel variance of a mode-1 fault entry is at least this (the
     variance of one frame's amplitude estimate): right after a detection the weight sits on a few
     sentinels (N_eff ~ 1), their weighted covariance is ~0 and the kernel could not restore the
-    spread of a fault amplitude known from one frame only; the estimate stayed where the onset
-    frame's noise put it (ch4: f_gnss 5-7 m off for seconds, see docs/estimation.md).
+    spread of a fault amplitude known from one frame only (docs/estimation.md).
     """
     n, N = X.shape
     nf = modes_prev.shape[0]
-    na = n - nf
-    if nf == 1:
-        code_prev = modes_prev[0].astype(np.int64)
-    else:
-        code_prev = np.zeros(N, dtype=np.int64)
-        for j in range(nf):
-            code_prev |= modes_prev[j].astype(np.int64) << j
+    code_prev = mode_codes(modes_prev)
     code_new = np.take(code_prev, idx)
-    if min_eff is None:
-        min_eff = 2.0 * n
     eps = epanechnikov(rng, n, N)
-    P_glob = None
-    # the patterns present after resampling, ascending, and their particle counts
-    if nf <= 16:
-        counts = np.bincount(code_new)
-        groups = np.flatnonzero(counts).tolist()
-        counts = counts[groups].tolist()
-    else:
-        groups, counts = np.unique(code_new, return_counts=True)
-        groups, counts = groups.tolist(), counts.tolist()
+    groups, counts = _patterns(code_new, nf)
+    covariance = _PatternCovariance(X_prev, w_prev, code_prev, nf, fault_var_floor)
+    if len(groups) == 1:          # one pattern: every column (same product, no gather)
+        X += (h * covariance_factor(covariance(groups[0]))) @ eps
+        return X
     jitter = None            # (n, N): each column's h D_g eps, for several patterns
     single = []              # (column, h D_g eps of it) of one-particle patterns
     for g, count in zip(groups, counts, strict=True):
-        sel_prev = code_prev == g
-        wg = w_prev[sel_prev]
-        W = wg.sum()
-        on = [(g >> j) & 1 for j in range(nf)]
-        if W > 0 and W * W / max(np.dot(wg, wg), 1e-300) >= min_eff:
-            Xg = X_prev[:, sel_prev]
-            mean = Xg @ wg / W
-            dX = Xg - mean[:, None]
-            P = (dX * (wg / W)) @ dX.T
-        else:
-            if P_glob is None:
-                mean = X_prev @ w_prev
-                dX = X_prev - mean[:, None]
-                P_glob = (dX * w_prev) @ dX.T
-            P = P_glob.copy()
-            off = [na + j for j in range(nf) if not on[j]]
-            if off:
-                keep = [i for i in range(n) if i not in off]
-                Poo = P[np.ix_(off, off)]
-                Pko = P[np.ix_(keep, off)]
-                if np.all(np.diag(Poo) > 1e-300):
-                    P[np.ix_(keep, keep)] -= Pko @ np.linalg.solve(Poo, Pko.T)
-                P[off, :] = 0.0
-                P[:, off] = 0.0
-        if fault_var_floor is not None:
-            for j in range(nf):
-                if on[j] and P[na + j, na + j] < fault_var_floor[j]:
-                    P[na + j, na + j] = fault_var_floor[j]
-        hD = h * covariance_factor(P)
-        if len(groups) == 1:      # one pattern: every column (same product, no gather)
-            X += hD @ eps
-        elif count == 1:          # a matrix-vector product: kept apart (BLAS gemv, not gemm)
+        hD = h * covariance_factor(covariance(g))
+        if count == 1:            # a matrix-vector product: kept apart (BLAS gemv, not gemm)
             col = np.flatnonzero(code_new == g)
             single.append((col, hD @ eps[:, col]))
         elif jitter is None:      # a product's column depends only on that column of eps, so
             jitter = hD @ eps     # the full product holds every pattern's columns bit for bit
         else:
             np.copyto(jitter, hD @ eps, where=code_new == g)
+    _add_jitter(X, jitter, single)
+    return X
+
+
+def _add_jitter(X: np.ndarray, jitter: np.ndarray | None, single: list) -> None:
+    """X += the per-pattern jitter (n, N) with the one-particle patterns' columns in place."""
     if jitter is not None:
         for col, J in single:
             jitter[:, col] = J
@@ -196,4 +231,38 @@ def regularize_per_mode(X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, i
     else:
         for col, J in single:
             X[:, col] += J
-    return X
+
+
+class NoJitter:
+    """No regularisation (the bootstrap filter)."""
+
+    needs_covariance = False
+
+    def jitter(self, X: np.ndarray, X_prev: np.ndarray, w_prev: np.ndarray, idx: np.ndarray,
+               modes_prev: np.ndarray, P: np.ndarray | None, rng: np.random.Generator) -> None:
+        """Nothing moves."""
+
+
+class GlobalJitter(NoJitter):
+    """One Epanechnikov kernel of bandwidth h on the cloud's covariance P (Alg. 2.7); shrink:
+    Liu-West shrinkage first (RPF, RRPF)."""
+
+    needs_covariance = True
+
+    def __init__(self, h: float, shrink: bool) -> None:
+        self.h, self.shrink = float(h), bool(shrink)
+
+    def jitter(self, X, X_prev, w_prev, idx, modes_prev, P, rng) -> None:
+        regularize(X, P, self.h, rng, self.shrink)
+
+
+class PerModeJitter(NoJitter):
+    """One kernel per mode pattern (`regularize_per_mode`, parts.jitter = "per_mode"); floor (nf,):
+    the least kernel variance of a mode-1 fault entry (SI^2)."""
+
+    def __init__(self, h: float, fault_var_floor: np.ndarray) -> None:
+        self.h = float(h)
+        self.fault_var_floor = np.asarray(fault_var_floor, dtype=float)
+
+    def jitter(self, X, X_prev, w_prev, idx, modes_prev, P, rng) -> None:
+        regularize_per_mode(X, X_prev, w_prev, idx, modes_prev, self.h, rng, self.fault_var_floor)

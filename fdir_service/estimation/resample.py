@@ -2,6 +2,7 @@
 
 Both resamplers return ancestor indices (N,) drawn from normalised weights w (N,) with one
 generator call: multinomial (the thesis's) from N sorted uniforms, systematic from one offset.
+The triggers `BelowEffectiveSize` and `EveryStep` say when a filter resamples.
 """
 
 from __future__ import annotations
@@ -38,6 +39,23 @@ def systematic(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     n = w.size
     u = (rng.random() + np.arange(n)) / n
     return _search(w, u)
+
+
+class BelowEffectiveSize:
+    """Resample when N_eff < Gamma N (eq. 2.53); threshold = Gamma."""
+
+    def __init__(self, threshold: float) -> None:
+        self.threshold = float(threshold)
+
+    def due(self, n_eff: float, N: int) -> bool:
+        return n_eff < self.threshold * N
+
+
+class EveryStep:
+    """Resample at every step (the bootstrap filter)."""
+
+    def due(self, n_eff: float, N: int) -> bool:
+        return True
 
 
 def resampler(name: str):

@@ -1,0 +1,45 @@
+"""Predict parts: the process model plus Gaussian process noise (SPEC section 5, thesis Alg. 2.8 step 1).
+
+Each takes the cloud X (n, N), the modes (nf, N) bool, the input u (2,) and the filter's
+generator, and returns the predicted cloud (a new array; X is not modified).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fdir_service.estimation.layout import N_AIRFRAME
+
+
+class GaussianPredict:
+    """x+ = f(x, u) + q eps on every entry; q_std (n,) per-step std (SI)."""
+
+    def __init__(self, process, q_std: np.ndarray) -> None:
+        self.process = process
+        self.q_std = np.asarray(q_std, dtype=float).reshape(-1, 1)
+
+    def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
+                rng: np.random.Generator) -> np.ndarray:
+        X = self.process.propagate(X, u)
+        noise = rng.standard_normal(X.shape)
+        noise *= self.q_std
+        X += noise
+        return X
+
+
+class ModeGatedPredict(GaussianPredict):
+    """As `GaussianPredict`, but a fault entry gets noise only in mode 1 (mode-0 entries are pinned
+    at 0 by the jump, parts.mode0 = "forced_zero")."""
+
+    def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
+                rng: np.random.Generator) -> np.ndarray:
+        X = self.process.propagate(X, u)
+        N = X.shape[1]
+        noise = rng.standard_normal((N_AIRFRAME, N))
+        noise *= self.q_std[:N_AIRFRAME]
+        X[:N_AIRFRAME] += noise
+        for j in range(modes.shape[0]):              # a loop over faults (nf <= ~6), not particles
+            on = np.flatnonzero(modes[j])
+            if on.size:
+                X[N_AIRFRAME + j][on] += self.q_std[N_AIRFRAME + j, 0] * rng.standard_normal(on.size)
+        return X
