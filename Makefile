@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/python -m fdir_service.demo
+	$(BIN)/python -m sim_bridge.demo
 
 test: $(STAMP)
 	$(BIN)/ruff check .

@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from fdir_service.daemon import open_link  # noqa: E402
-from fdir_service.demo import free_udp_port  # noqa: E402
+from sim_bridge.demo import free_udp_port  # noqa: E402
 from sim_bridge.mavlink_bridge import AutopilotLink  # noqa: E402
 from sim_bridge.scenario import load_scenario  # noqa: E402
 from sim_bridge.simulate import SimStepper, default_autopilot  # noqa: E402

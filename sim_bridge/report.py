@@ -111,10 +111,11 @@ READING_NOTES: tuple[str, ...] = (
 
 
 def thesis_tables() -> dict:
-    """The thesis's Tables 4.1-6.1 (thesis_tables.json): config/, else docs/results/."""
+    """The thesis's Tables 4.1-6.1 (thesis_tables.json): config/experiments/, else docs/results/."""
     here = Path(__file__).resolve().parent.parent
-    for p in (config_dir() / "thesis_tables.json", here / "docs" / "results" / "thesis_tables.json",
-              Path("/work/shared/thesis_tables.json")):
+    name = "thesis_tables.json"
+    for p in (config_dir() / "experiments" / name, here / "docs" / "results" / name,
+              Path("/work/shared") / name):
         if p.exists():
             return json.loads(p.read_text())
     return {}

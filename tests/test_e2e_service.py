@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fdir_service.demo import GroundStation, free_udp_port
 from fdir_service.recording.logtools import McapLog
+from sim_bridge.demo import GroundStation, free_udp_port
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -10,8 +10,8 @@ from support import with_parts
 
 from fdir_service.estimation.factory import build_filter, build_particle_filter
 from fdir_service.estimation.particle import Frame, ParticleFilter
-from fdir_service.estimation.synthetic import generate
 from sim_bridge.scenario import SensorConfig, load_scenario
+from sim_bridge.synthetic import generate
 
 PF_NAMES = ("RPF", "RRPF", "JMRPF", "RJMRPF", "bootstrap")
 

@@ -8,8 +8,8 @@ from filterpy.kalman import KalmanFilter as FpKalman
 
 from fdir_service.estimation.factory import build_filter
 from fdir_service.estimation.layout import N_AIRFRAME
-from fdir_service.estimation.synthetic import generate
 from sim_bridge.scenario import load_scenario
+from sim_bridge.synthetic import generate
 
 STEPS = 300
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from fdir_service.estimation.factory import build_filter
-from fdir_service.estimation.synthetic import generate
 from sim_bridge.scenario import load_scenario
+from sim_bridge.synthetic import generate
 
 
 @pytest.mark.parametrize("name", ["RPF", "JMRPF", "RJMRPF"])

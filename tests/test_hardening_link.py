@@ -15,10 +15,10 @@ from test_hardening_input import PACKETS, run_mutated
 from test_service_helpers import fake_factory
 
 from fdir_service.daemon import Daemon
-from fdir_service.demo import free_udp_port
 from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.pipeline import Pipeline
 from fdir_service.service_config import ServiceConfig, default_config_path
+from sim_bridge.demo import free_udp_port
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE = default_config_path().read_text()

@@ -1,10 +1,10 @@
-"""SPEC section 8 metrics (fdir_service.metrics, shared by the campaigns and the replay scorer) on
+"""SPEC section 8 metrics (sim_bridge.metrics, shared by the campaigns and the replay scorer) on
 hand-made data with known answers."""
 
 import numpy as np
 import pytest
 
-from fdir_service.metrics import (
+from sim_bridge.metrics import (
     detection_metrics,
     fault_episodes,
     held_above,
@@ -89,7 +89,7 @@ def test_detection_metrics_counts_a_missed_episode():
 
 
 def test_single_run_helpers():
-    from fdir_service.metrics import episode_delays, false_alarm_fraction, missed_fraction, rmse
+    from sim_bridge.metrics import episode_delays, false_alarm_fraction, missed_fraction, rmse
 
     assert rmse([1.0, -1.0, np.nan, 3.0], [0.0, 0.0, 0.0, 0.0]) == pytest.approx(np.sqrt(11 / 3))
     assert np.isnan(rmse([np.nan], [0.0]))
@@ -104,14 +104,10 @@ def test_single_run_helpers():
     assert episode_delays(T, np.zeros_like(p), active, 5)[0][2] is None
 
 
-def test_campaign_and_replay_share_the_definitions():
-    """sim_bridge.metrics re-exports fdir_service.metrics; replay scores with the same functions."""
-    import fdir_service.metrics as shared
-    import fdir_service.replay as replay
+def test_replay_scorer_uses_the_campaign_definitions():
+    """The replay scorer scores with the campaign's metric functions (one definition, SPEC 8)."""
     import sim_bridge.metrics as campaign
+    import sim_bridge.replay_score as scorer
 
-    for name in ("rmse_over_runs", "detection_metrics", "median_run", "held_above", "table_columns"):
-        assert getattr(campaign, name) is getattr(shared, name)
     for name in ("episode_delays", "false_alarm_fraction", "missed_fraction", "rmse"):
-        assert getattr(replay, name) is getattr(shared, name)
-    assert replay.REPORT_TIMES == shared.TABLE_TIMES and replay.HOLD_S == shared.HOLD_S
+        assert getattr(scorer, name) is getattr(campaign, name)

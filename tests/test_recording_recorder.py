@@ -11,8 +11,9 @@ from mcap.reader import make_reader
 from pymavlink.dialects.v20 import common as mavlink
 
 from fdir_service.estimation.base import StepOutput
-from fdir_service.recording import McapLog, Recorder, TruthWriter, log_info
+from fdir_service.recording import McapLog, Recorder, log_info
 from fdir_service.recording import schemas as S
+from sim_bridge.truth_log import TruthWriter, truth_schema
 
 FAULTS = ("gnss", "baro")
 DT_NS = 50_000_000  # 20 Hz frames
@@ -229,4 +230,4 @@ def test_truth_writer_records_states_faults_inputs(tmp_path):
     assert len(recs) == 100
     assert recs[40]["f_gnss"] == 50.0 and recs[40]["active_gnss"] and not recs[39]["active_gnss"]
     assert recs[0]["h"] == 500.0 and recs[0]["delta_t"] == 0.53 and recs[10]["t"] == 0.5
-    check_schema(recs[0], S.truth_schema(FAULTS))
+    check_schema(recs[0], truth_schema(FAULTS))

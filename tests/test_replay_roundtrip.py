@@ -12,9 +12,11 @@ from support import CH4, ch4_service  # noqa: F401
 
 from fdir_service.cli import main as fdir_main
 from fdir_service.pipeline import Pipeline
-from fdir_service.recording import McapLog, Recorder, TruthWriter
+from fdir_service.recording import McapLog, Recorder
 from fdir_service.recording import schemas as S
-from fdir_service.replay import compare_identity, replay, score
+from fdir_service.replay import compare_identity, replay
+from sim_bridge.replay_score import replay_and_score, score
+from sim_bridge.truth_log import TruthWriter
 
 SECONDS = 20.0
 PARTICLES = 200
@@ -84,11 +86,12 @@ def test_identity_check_detects_a_different_seed(flight):
 def test_replay_with_another_filter_and_truth_scores_and_draws(flight, tmp_path):
     log, truth, _ = flight
     report = tmp_path / "report"
-    r = replay(log, filter_name="IMM-KF", truth=truth, report_dir=report)
+    scored = replay_and_score(log, filter_name="IMM-KF", truth=truth, report_dir=report)
+    r = scored.result
     assert not r.same_setup and r.filter == "IMM-KF"
     assert set(r.differences) >= {"f_gnss", "pf_gnss", "f_baro", "x_p_d", "var_theta", "n_eff"}
     for run in ("recorded", "replayed"):
-        m = r.metrics[run]
+        m = scored.metrics[run]
         assert m["frames"] == 400 and m["frames_unmatched"] == 0
         g = m["faults"]["gnss"]
         assert g["episodes"][0]["onset_s"] == pytest.approx(10.0)
@@ -97,7 +100,7 @@ def test_replay_with_another_filter_and_truth_scores_and_draws(flight, tmp_path)
         assert 0.0 < g["rmse"] < 15.0
         assert m["faults"]["baro"]["episodes"] == []  # baro fault starts at 20 s: not in this log
         assert m["states"]["theta"]["rmse_deg"] < 2.0
-    names = sorted(p.name for p in r.report_files)
+    names = sorted(p.name for p in scored.report_files)
     assert names == ["faults.png", "report.md", "states.png", "summary.json"]
     assert (report / "faults.png").stat().st_size > 20_000
     assert "| replayed | gnss |" in (report / "report.md").read_text()
@@ -108,6 +111,16 @@ def test_fdir_replay_cli_reports_identity(flight, capsys):
     assert fdir_main(["replay", str(log)]) == 0
     out = capsys.readouterr().out
     assert "bit-identical: 400 estimates" in out and "x real time" in out
+
+
+def test_sim_bridge_replay_cli_scores_against_the_truth(flight, capsys):
+    from sim_bridge.cli import main as sim_main
+
+    log, truth, _ = flight
+    assert sim_main(["replay", str(log), "--truth", str(truth)]) == 0
+    out = capsys.readouterr().out
+    assert "bit-identical: 400 estimates" in out
+    assert "replayed gnss: RMSE" in out and "recorded gnss: RMSE" in out
 
 
 def test_replay_of_a_log_cut_short_by_a_crash(flight, tmp_path):

@@ -1,9 +1,10 @@
 """`fdir bench`: median microseconds per filter step, for every filter of the family.
 
-Each filter runs on open-loop synthetic data of its benchmark scenario (KF, IMM-KF: ch4, linear;
-RPF, RRPF, JMRPF, RJMRPF and the plain bootstrap filter: ch5a, nonlinear process model;
-AJMRPF, ARJMRPF: ch6, same model) from t = 7.5 s, through a fault onset, after a warm-up.
-Particle filters at N = 100, 1000, 10000; Kalman filters once (N is reported as 1000 for them).
+Every filter runs the estimator's own configuration (default: the service's default estimator,
+`--estimator NAME|FILE`) on frames drawn from that estimator's own model
+(`fdir_service.estimation.model_frames`: trim, its assumed noise, a 5-sigma step on its first
+sensor fault 2.5 s into the timed steps), after a warm-up. Particle filters at N = 100, 1000,
+10000; Kalman filters once (N is reported as 1000 for them).
 The filters of one N run interleaved, step by step, so that load changes hit them alike.
 `--json` prints {"cores": C, "filters": {NAME: {"N": us_per_step}}}.
 """
@@ -14,11 +15,11 @@ import argparse
 import json
 import os
 import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
-BENCH_SCENARIO = {"KF": "ch4", "IMM-KF": "ch4", "RPF": "ch5a", "RRPF": "ch5a", "JMRPF": "ch5a",
-                  "RJMRPF": "ch5a", "bootstrap": "ch5a", "AJMRPF": "ch6", "ARJMRPF": "ch6"}
 ORDER = ("KF", "IMM-KF", "bootstrap", "RPF", "RRPF", "JMRPF", "RJMRPF", "AJMRPF", "ARJMRPF")
 SIZES = (100, 1000, 10000)
 
@@ -27,89 +28,105 @@ def _clock(name: str):
     return time.perf_counter if name == "wall" else time.thread_time
 
 
-def time_filters(names: tuple[str, ...], N: int, steps: int, warmup: int = 20, seed: int = 0,
-                 clock: str = "wall") -> dict[str, tuple[float, float]]:
-    """(median, mean) microseconds per `step` call of each filter at N particles.
+FrameSource = Callable[[tuple[str, ...], int, int, int], dict[str, tuple[Any, Any]]]
+"""(names, N, steps, seed) -> {name: (filter built at N particles, frames with t, y, mask, u (K, ...))}."""
+
+
+def estimator_source(estimator: str | None = None, seed: int = 0) -> FrameSource:
+    """Every filter on one estimator (default: the service's) and frames from its own model, with a
+    5-sigma step on its first sensor fault 2.5 s into the timed steps."""
+    from fdir_service.estimation.factory import build_filter
+    from fdir_service.estimation.model_frames import model_frames
+    from fdir_service.estimator_config import load_estimator
+
+    est = load_estimator(estimator) if estimator else load_estimator()
+
+    def source(names: tuple[str, ...], N: int, steps: int, warmup: int) -> dict[str, tuple[Any, Any]]:
+        onset = (warmup + 50) * est.dt_s
+        frames = model_frames(est, warmup + steps, np.random.default_rng(seed), onset_s=onset)
+        return {name: (build_filter(name, est, np.random.default_rng(seed + 1), particles=N), frames)
+                for name in names}
+    return source
+
+
+def time_steps(setups: dict[str, tuple[Any, Any]], steps: int, warmup: int = 20,
+               clock: str = "wall") -> dict[str, tuple[float, float]]:
+    """(median, mean) microseconds per `step` call of each (filter, frames) after `warmup` frames.
 
     A particle filter's step times are bimodal (steps with and without resampling), so the
     median can jump between the two when the resampling rate is near 50 %: the mean is given too.
-
     The filters run interleaved (step k of every filter, then step k + 1), so that a change of
     machine load affects them alike: their ratios are meaningful on a shared machine.
     clock: "wall" (perf_counter) or "cpu" (this thread's CPU time).
     """
-    from fdir_service.estimation.factory import build_filter
-    from fdir_service.estimation.synthetic import generate
-    from sim_bridge.scenario import load_scenario
-
     tick = _clock(clock)
-    runs, filters = {}, {}
-    start = 0
-    for name in names:
-        sid = BENCH_SCENARIO[name]
-        sc = load_scenario(sid)
-        start = int(round(7.5 / sc.dt_s))
-        if sid not in runs:
-            runs[sid] = generate(sc, np.random.default_rng(seed), start + warmup + steps)
-        filters[name] = build_filter(name, sc.estimator, np.random.default_rng(seed + 1), particles=N)
-    times = {name: np.empty(steps) for name in names}
-    for k in range(start + warmup + steps):
-        for name in names:
-            run = runs[BENCH_SCENARIO[name]]
-            f = filters[name]
+    times = {name: np.empty(steps) for name in setups}
+    for k in range(warmup + steps):
+        for name, (f, fr) in setups.items():
             t0 = tick()
-            f.step(run.t[k], run.y[k], run.mask[k], run.u[k])
+            f.step(fr.t[k], fr.y[k], fr.mask[k], fr.u[k])
             dt = tick() - t0
-            if k >= start + warmup:
-                times[name][k - start - warmup] = dt
+            if k >= warmup:
+                times[name][k - warmup] = dt
     return {name: (float(np.median(v) * 1e6), float(np.mean(v) * 1e6)) for name, v in times.items()}
 
 
-def run_bench(filters: tuple[str, ...] = ORDER, sizes: tuple[int, ...] = SIZES,
-              steps: int = 200, clock: str = "wall") -> dict:
+def run_bench(source: FrameSource, filters: tuple[str, ...] = ORDER, sizes: tuple[int, ...] = SIZES,
+              steps: int = 200, clock: str = "wall", warmup: int = 20) -> dict:
     """{"cores": C, "filters": {NAME: {"N": median us}}, "mean": {NAME: {"N": mean us}}}."""
     out: dict = {"cores": os.cpu_count(), "filters": {name: {} for name in filters},
                  "mean": {name: {} for name in filters}}
     kalman = tuple(f for f in filters if f in ("KF", "IMM-KF"))
     particle = tuple(f for f in filters if f not in kalman)
-    if kalman:
-        for name, (med, mean) in time_filters(kalman, 1000, steps, clock=clock).items():
-            out["filters"][name]["1000"] = round(med, 1)
-            out["mean"][name]["1000"] = round(mean, 1)
-    for N in sizes if particle else ():
-        n_steps = steps if N <= 1000 else max(steps // 4, 20)
-        for name, (med, mean) in time_filters(particle, N, n_steps, clock=clock).items():
+    runs = [(kalman, 1000, steps)] if kalman else []
+    runs += [(particle, N, steps if N <= 1000 else max(steps // 4, 20)) for N in (sizes if particle else ())]
+    for names, N, n_steps in runs:
+        timed = time_steps(source(names, N, n_steps, warmup), n_steps, warmup, clock)
+        for name, (med, mean) in timed.items():
             out["filters"][name][str(N)] = round(med, 1)
             out["mean"][name][str(N)] = round(mean, 1)
     return out
 
 
-def _run(args: argparse.Namespace) -> int:
-    filters = tuple(args.filters.split(",")) if args.filters else ORDER
-    unknown = [f for f in filters if f not in BENCH_SCENARIO]
-    if unknown:
-        print(f"fdir bench: unknown filter(s) {', '.join(unknown)}; expected {', '.join(ORDER)}")
-        return 2
-    res = run_bench(filters, SIZES, args.steps, args.clock)
-    if args.json:
-        print(json.dumps({"cores": res["cores"], "filters": res["filters"]}))
-        return 0
-    print(f"fdir bench: median us per filter step ({res['cores']} cores; {args.clock} clock; "
-          "open-loop synthetic data; filters interleaved)")
+def print_bench(res: dict, title: str) -> None:
+    """The table of `run_bench` and the RJMRPF / bootstrap ratio at N = 1000."""
+    print(title)
     print("median (mean) us per step")
-    print(f"{'filter':10s} {'scenario':8s} " + " ".join(f"{'N=' + str(n):>17s}" for n in SIZES))
+    print(f"{'filter':10s} " + " ".join(f"{'N=' + str(n):>17s}" for n in SIZES))
     for name, r in res["filters"].items():
         m = res["mean"][name]
         cells = " ".join(f"{r[str(n)]:8.1f} ({m[str(n)]:6.1f})" if str(n) in r else f"{'-':>17s}"
                          for n in SIZES)
-        print(f"{name:10s} {BENCH_SCENARIO[name]:8s} {cells}")
-    fl = res["filters"]
-    if "RJMRPF" in fl and "bootstrap" in fl:
+        print(f"{name:10s} {cells}")
+    fl, mean = res["filters"], res["mean"]
+    if "1000" in fl.get("RJMRPF", {}) and "1000" in fl.get("bootstrap", {}):
         ratio = fl["RJMRPF"]["1000"] / fl["bootstrap"]["1000"]
-        mr = res["mean"]["RJMRPF"]["1000"] / res["mean"]["bootstrap"]["1000"]
+        mr = mean["RJMRPF"]["1000"] / mean["bootstrap"]["1000"]
         print(f"RJMRPF / bootstrap at N=1000: median {ratio:.2f}, mean {mr:.2f} (goal <= 1.3); "
-              f"RJMRPF median {fl['RJMRPF']['1000']:.0f} us, mean {res['mean']['RJMRPF']['1000']:.0f} us "
+              f"RJMRPF median {fl['RJMRPF']['1000']:.0f} us, mean {mean['RJMRPF']['1000']:.0f} us "
               "(goal < 500 us)")
+
+
+def parse_filters(text: str, prog: str) -> tuple[str, ...] | None:
+    """A comma-separated subset of ORDER (empty: all), or None after printing what is unknown."""
+    filters = tuple(text.split(",")) if text else ORDER
+    unknown = [f for f in filters if f not in ORDER]
+    if unknown:
+        print(f"{prog}: unknown filter(s) {', '.join(unknown)}; expected {', '.join(ORDER)}")
+        return None
+    return filters
+
+
+def _run(args: argparse.Namespace) -> int:
+    filters = parse_filters(args.filters, "fdir bench")
+    if filters is None:
+        return 2
+    res = run_bench(estimator_source(args.estimator), filters, SIZES, args.steps, args.clock)
+    if args.json:
+        print(json.dumps({"cores": res["cores"], "filters": res["filters"]}))
+        return 0
+    print_bench(res, f"fdir bench: median us per filter step ({res['cores']} cores; {args.clock} clock; "
+                f"estimator {args.estimator or 'default'} on frames from its own model; filters interleaved)")
     return 0
 
 
@@ -121,4 +138,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                    help="wall time (default) or this thread's CPU time, steadier on a busy machine")
     p.add_argument("--filters", default="", help="comma-separated subset, e.g. RJMRPF,bootstrap")
+    p.add_argument("--estimator", metavar="NAME|FILE", default=None,
+                   help="estimator to benchmark (config/estimators/NAME.toml or a file; default: the "
+                   "service's default)")
     p.set_defaults(func=_run)

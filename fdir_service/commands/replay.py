@@ -1,4 +1,4 @@
-"""`fdir replay LOG.mcap`: feed a recorded flight's input through the service's processing core again."""
+"""`fdir replay`: run a recorded flight's input through the service's processing core again."""
 
 from __future__ import annotations
 
@@ -7,37 +7,36 @@ import sys
 
 from mcap.exceptions import McapError
 
-from fdir_service.replay import ReplayError, replay
+from fdir_service.estimation.recipes import FILTER_NAMES
+from fdir_service.replay import ReplayError, ReplayResult, replay
+
+
+def add_replay_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments `fdir replay` and `sim-bridge replay` share."""
+    p.add_argument("log", metavar="LOG.mcap", help="a recording of `fdir run` (or of a replay)")
+    p.add_argument("--filter", dest="filter_name", metavar="NAME", choices=FILTER_NAMES,
+                   help=f"filter to run instead of the recorded one ({', '.join(FILTER_NAMES)})")
+    p.add_argument("--particles", type=int, metavar="N", help="particle count (default: as recorded)")
+    p.add_argument("--seed", type=int, metavar="N", help="filter seed (default: as recorded)")
+    p.add_argument("--out", metavar="NEW.mcap", help="record the replay like a flight")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "replay", help="replay a recorded flight offline (check, compare filters, score against truth)",
+        "replay", help="replay a recorded flight offline (check bit-identity, compare filters)",
         description="Feed the raw MAVLink input recorded in LOG.mcap through a fresh copy of the "
         "service's processing core (the recorded config). With the recorded filter, particle count and "
         "seed the estimates are bit-identical to the flight's (every /fdir/estimate field but latency_s); "
-        "with another filter the run is a comparison; with the simulator's truth both are scored "
-        "(RMSE, detection delay, false-alarm fraction). Works on a log whose writer was killed.")
-    p.add_argument("log", metavar="LOG.mcap", help="a recording of `fdir run` (or of a replay)")
-    p.add_argument("--filter", dest="filter_name", metavar="NAME",
-                   help="filter to run instead of the recorded one (KF, IMM-KF, RPF, RRPF, JMRPF, RJMRPF, "
-                   "AJMRPF, ARJMRPF, EKF-GATE)")
-    p.add_argument("--particles", type=int, metavar="N", help="particle count (default: as recorded)")
-    p.add_argument("--seed", type=int, metavar="N", help="filter seed (default: as recorded)")
-    p.add_argument("--truth", metavar="TRUTH.mcap", help="simulator truth from `sim-bridge fly --record`")
-    p.add_argument("--out", metavar="NEW.mcap", help="record the replay like a flight")
-    p.add_argument("--report", metavar="DIR", help="write summary.json, report.md and figures to DIR")
+        "with another filter the run is a comparison. Works on a log whose writer was killed. "
+        "To score against a simulator's truth and draw figures: "
+        "`sim-bridge replay LOG --truth T --report D`.")
+    add_replay_arguments(p)
     p.set_defaults(func=_run)
     return p
 
 
-def _run(args: argparse.Namespace) -> int:
-    try:
-        r = replay(args.log, filter_name=args.filter_name, particles=args.particles, seed=args.seed,
-                   truth=args.truth, out=args.out, report_dir=args.report)
-    except (ReplayError, McapError, OSError) as exc:
-        print(f"fdir replay: {exc}", file=sys.stderr)
-        return 1
+def print_replay(r: ReplayResult) -> None:
+    """The replay's speed, setups, and identity (same setup) or estimate differences (another one)."""
     rec = r.recorded_setup
     print(f"replayed {r.frames} frames ({r.log_duration_s:.2f} s of log) in {r.wall_s:.2f} s: "
           f"{r.speed:.0f}x real time")
@@ -48,20 +47,28 @@ def _run(args: argparse.Namespace) -> int:
     elif r.differences:
         for fid in [k[3:] for k in r.differences if k.startswith("pf_")]:
             d, dp = r.differences.get(f"f_{fid}", {}), r.differences[f"pf_{fid}"]
-            print(f"  {fid}: estimate RMS difference {_f(d.get('rms'))}, P(fault) RMS difference "
-                  f"{_f(dp.get('rms'))}")
-    if r.metrics:
-        for run, m in r.metrics.items():
-            for fid, fm in m["faults"].items():
-                delays = ", ".join(_f(e["delay_s"], ".2f") for e in fm["episodes"]) or "-"
-                print(f"  {run:>8} {fid}: RMSE {_f(fm['rmse'])}, detection delay {delays} s, "
-                      f"false alarms {_f(fm['false_alarm_fraction'])}, missed {_f(fm['missed_fraction'])}")
+            print(f"  {fid}: estimate RMS difference {fmt(d.get('rms'))}, P(fault) RMS difference "
+                  f"{fmt(dp.get('rms'))}")
     if r.out_paths:
         print("recorded to " + ", ".join(str(p) for p in r.out_paths))
-    if r.report_files:
-        print("report: " + ", ".join(str(p) for p in r.report_files))
+
+
+def exit_code(r: ReplayResult) -> int:
+    """0, or 3 when the same setup did not reproduce the recorded estimates."""
     return 0 if (r.identity.identical or r.identity.common_identical or not r.same_setup) else 3
 
 
-def _f(v: float | None, spec: str = ".3f") -> str:
+def _run(args: argparse.Namespace) -> int:
+    try:
+        r = replay(args.log, filter_name=args.filter_name, particles=args.particles, seed=args.seed,
+                   out=args.out)
+    except (ReplayError, McapError, OSError) as exc:
+        print(f"fdir replay: {exc}", file=sys.stderr)
+        return 1
+    print_replay(r)
+    return exit_code(r)
+
+
+def fmt(v: float | None, spec: str = ".3f") -> str:
+    """v formatted, or "-" for None."""
     return "-" if v is None else format(v, spec)

@@ -1,4 +1,4 @@
-"""Flight recording to MCAP: the `Recorder` observer, the simulator's `TruthWriter`, log reading, repair."""
+"""Flight recording to MCAP: the `Recorder` observer, log reading, repair."""
 
 from fdir_service.recording.logtools import McapLog, linear_scan, log_info, recover
 from fdir_service.recording.recorder import (
@@ -10,9 +10,8 @@ from fdir_service.recording.recorder import (
     Recorder,
     default_record_path,
 )
-from fdir_service.recording.truth import TRUTH_TOPIC, TruthWriter
 
 __all__ = [
-    "ESTIMATE_TOPIC", "LOG_TOPIC", "PARTICLES_TOPIC", "RAW_IN_TOPIC", "RAW_OUT_TOPIC", "TRUTH_TOPIC",
-    "McapLog", "Recorder", "TruthWriter", "default_record_path", "linear_scan", "log_info", "recover",
+    "ESTIMATE_TOPIC", "LOG_TOPIC", "PARTICLES_TOPIC", "RAW_IN_TOPIC", "RAW_OUT_TOPIC",
+    "McapLog", "Recorder", "default_record_path", "linear_scan", "log_info", "recover",
 ]

@@ -3,8 +3,8 @@
 One named schema per MAVLink message type (`mavlink.<MSG>`, built from pymavlink's field tables),
 the flat `/fdir/estimate` record (`fdir.Estimate`, one numeric field per quantity so Foxglove's
 plot panel addresses `/fdir/estimate.f_gnss`), the top-particle snapshot (`fdir.Particles`), the
-raw MAVLink byte stream (`fdir.RawMavlink`, base64 bytes), the simulator truth (`fdir.SimTruth`)
-and Foxglove's own `foxglove.Log` (the name Foxglove's Log panel recognises).
+raw MAVLink byte stream (`fdir.RawMavlink`, base64 bytes) and Foxglove's own `foxglove.Log` (the name
+Foxglove's Log panel recognises).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ STATE_NAMES: tuple[str, ...] = ("p_d", "u", "w", "theta", "q")
 
 _INTEGER_TYPES = {"int8_t", "uint8_t", "int16_t", "uint16_t", "int32_t", "uint32_t", "int64_t", "uint64_t",
                   "uint8_t_mavlink_version"}
-_NUMBER = {"type": ["number", "null"]}  # null carries a NaN / inf (JSON has no NaN)
+NULLABLE_NUMBER = {"type": ["number", "null"]}  # null carries a NaN / inf (JSON has no NaN)
 _INTEGER = {"type": "integer"}
 
 
@@ -45,7 +45,7 @@ def _field_schema(mav_type: str, array_length: int, unit: str | None) -> dict[st
     elif base in _INTEGER_TYPES:
         item = dict(_INTEGER)
     else:
-        item = dict(_NUMBER)
+        item = dict(NULLABLE_NUMBER)
     if base != "char" and array_length:
         item = {"type": "array", "items": item, "minItems": array_length, "maxItems": array_length}
     if unit:
@@ -190,7 +190,7 @@ def estimate_schema(fault_ids: Sequence[str], n_state: int, *, adaptive: bool) -
     """The `fdir.Estimate` schema for one filter layout (flat numbers: Foxglove plot-panel paths)."""
     props: dict[str, Any] = {}
     for name in estimate_field_names(fault_ids, n_state, adaptive=adaptive):
-        props[name] = {"type": "boolean"} if name == "resampled" else dict(_NUMBER)
+        props[name] = {"type": "boolean"} if name == "resampled" else dict(NULLABLE_NUMBER)
     props["frame_time_s"]["description"] = "frame time, s (the autopilot's timestamp of the frame)"
     props["latency_s"]["description"] = "wall-clock processing time of the step, s (not reproducible)"
     props["n_eff"]["description"] = "effective sample size 1 / sum w^2"
@@ -204,7 +204,8 @@ def estimate_schema(fault_ids: Sequence[str], n_state: int, *, adaptive: bool) -
     }
 
 
-def _num(v: Any) -> float | None:
+def finite_or_none(v: Any) -> float | None:
+    """float(v), or None when it is NaN or infinite (JSON has no NaN)."""
     f = float(v)
     return f if math.isfinite(f) else None
 
@@ -275,8 +276,8 @@ PARTICLES_SCHEMA: dict[str, Any] = {
     "properties": {
         "frame_time_s": {"type": "number"},
         "names": {"type": "array", "items": {"type": "string"}},
-        "weights": {"type": "array", "items": _NUMBER},
-        "states": {"type": "array", "items": {"type": "array", "items": _NUMBER}},
+        "weights": {"type": "array", "items": NULLABLE_NUMBER},
+        "states": {"type": "array", "items": {"type": "array", "items": NULLABLE_NUMBER}},
     },
     "required": ["frame_time_s", "names", "weights", "states"],
 }
@@ -288,8 +289,8 @@ def particles_json(frame_time_s: float, states: np.ndarray, weights: np.ndarray,
     return {
         "frame_time_s": float(frame_time_s),
         "names": list(names),
-        "weights": [_num(w) for w in np.asarray(weights, dtype=float).ravel()],
-        "states": [[_num(v) for v in row] for row in s],
+        "weights": [finite_or_none(w) for w in np.asarray(weights, dtype=float).ravel()],
+        "states": [[finite_or_none(v) for v in row] for row in s],
     }
 
 
@@ -335,30 +336,4 @@ def log_json(level: str, text: str, t_ns: int, name: str = "fdir") -> dict[str, 
         "name": name,
         "file": "",
         "line": 0,
-    }
-
-
-# ----------------------------------------------------------------------------- simulator truth
-
-def truth_field_names(fault_ids: Sequence[str]) -> list[str]:
-    """Flat fields of `/sim/truth`: time, airframe state, altitude, fault values and mode flags, inputs."""
-    names = ["t", *STATE_NAMES, "h"]
-    names += [f"f_{f}" for f in fault_ids]
-    names += [f"active_{f}" for f in fault_ids]
-    names += ["delta_e", "delta_t"]
-    return names
-
-
-def truth_schema(fault_ids: Sequence[str]) -> dict[str, Any]:
-    props: dict[str, Any] = {}
-    for name in truth_field_names(fault_ids):
-        props[name] = {"type": "boolean"} if name.startswith("active_") else dict(_NUMBER)
-    props["t"]["description"] = "simulation time, s (the clock of time_boot_ms on the wire)"
-    return {
-        "title": "fdir.SimTruth",
-        "description": "Simulator truth at one frame: state z = [p_d, u, w, theta, q] (SI), altitude h, "
-        "each fault's true value (SI) and whether it is active, inputs [delta_e rad, delta_t 0..1].",
-        "type": "object",
-        "properties": props,
-        "required": list(props),
     }

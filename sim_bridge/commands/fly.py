@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     rx = _Receiver(conn, link)
     truth = None
     if args.record is not None:
-        from fdir_service.recording.truth import TruthWriter
+        from sim_bridge.truth_log import TruthWriter
 
         args.record.parent.mkdir(parents=True, exist_ok=True)
         truth = TruthWriter(args.record, [f.id for f in scenario.faults],

@@ -2,8 +2,8 @@
 
 The truth starts at trim and is driven by the trim input (plus any actuator fault): linear truth
 with the scenario's truth.linear_matrices, nonlinear truth with RK4 (4 substeps per frame).
-Measurements = H_z z + sensor faults + N(0, true sigma^2) (SPEC section 3). Fault profiles
-follow `scenario.ProfileComponent` (step, exponential, ramp, intermittent), in SI.
+Measurements = H_z z + sensor faults + N(0, true sigma^2) (SPEC section 3). Fault values from
+`sim_bridge.faults.channel_value` (the simulator's own profiles), in SI.
 """
 
 from __future__ import annotations
@@ -17,25 +17,8 @@ from fdir_service.airframe.linearize import linear_model
 from fdir_service.airframe.params import load_airframe
 from fdir_service.estimation.layout import N_AIRFRAME
 from fdir_service.estimation.measurement import MEASURED_STATE
-from sim_bridge.scenario import ACTUATORS, FaultChannel, Scenario
-
-
-def fault_value(fault: FaultChannel, t: np.ndarray) -> np.ndarray:
-    """True fault (SI) at times t (s): the sum of the channel's profile components."""
-    t = np.asarray(t, dtype=float)
-    f = np.zeros_like(t)
-    for c in fault.profile:
-        on = (t >= c.start_s) & (t < c.end_s)
-        if c.shape == "step":
-            f += np.where(on, c.amplitude, 0.0)
-        elif c.shape == "exponential":
-            f += np.where(on, c.amplitude * np.exp((t - c.end_s) / c.tau_s), 0.0)
-        elif c.shape == "ramp":
-            f += np.where(on, c.amplitude * (t - c.start_s) / (c.end_s - c.start_s), 0.0)
-        else:  # intermittent
-            phase = np.mod(t - c.start_s, c.on_s + c.off_s)
-            f += np.where(on & (phase < c.on_s), c.amplitude, 0.0)
-    return f
+from sim_bridge.faults import channel_value
+from sim_bridge.scenario import ACTUATORS, Scenario
 
 
 @dataclass
@@ -64,7 +47,7 @@ def generate(scenario: Scenario, rng: np.random.Generator, steps: int | None = N
     dt = scenario.dt_s
     t = dt * np.arange(1, K + 1)
     nf = len(scenario.faults)
-    faults = np.stack([fault_value(f, t) for f in scenario.faults], axis=1) if nf else np.zeros((K, 0))
+    faults = np.stack([channel_value(f, t) for f in scenario.faults], axis=1) if nf else np.zeros((K, 0))
     u_cmd = np.broadcast_to(lm.trim.u, (K, 2)).copy() if u is None else np.array(u, dtype=float)
     z = np.empty((K, N_AIRFRAME))
     zk = lm.trim.z.copy()
@@ -73,7 +56,7 @@ def generate(scenario: Scenario, rng: np.random.Generator, steps: int | None = N
         ue = u_cmd[k].copy()
         for f in scenario.faults:
             if f.kind == "actuator":
-                ue[ACTUATORS.index(f.target)] += fault_value(f, np.array([t[k] - dt]))[0]
+                ue[ACTUATORS.index(f.target)] += channel_value(f, t[k] - dt)
         if scenario.truth.model == "linear":
             zk = lm.step(zk, ue)
         else:

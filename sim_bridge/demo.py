@@ -1,4 +1,4 @@
-"""`make demo` (`python -m fdir_service.demo`): the simulator, the service and a ground station.
+"""`make demo` (`python -m sim_bridge.demo`): the simulator, the service and a ground station.
 
 Starts `fdir run` (recording an MCAP) and `sim-bridge fly ch4` several times faster than real
 time with the autopilot flying on the service's estimate, listens on UDP as a ground station
@@ -220,7 +220,7 @@ def max_altitude_error(truth_path: Path, command_m: float) -> float | None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m fdir_service.demo", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m sim_bridge.demo", description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="ch4")
     ap.add_argument("--speed", type=float, default=5.0, help="times real time (default 5)")
     ap.add_argument("--filter", default=None, help="estimator (default: config/service.toml)")

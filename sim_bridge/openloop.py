@@ -1,11 +1,11 @@
 """Open-loop quality check of the filters against the thesis's tables (synthetic data, no simulator).
 
-    python -m fdir_service.estimation.openloop ch5a RJMRPF,JMRPF,RPF --runs 20 [--sigma-x-scale 0.2236]
+    python -m sim_bridge.openloop ch5a RJMRPF,JMRPF,RPF --runs 20 [--sigma-x-scale 0.2236]
 
 For each run: `synthetic.generate` (truth at trim, trim input, the scenario's faults), every named
 filter on the same data; prints RMSE_k of each fault estimate at 10.05, 20.05, 30.05, 40.05 s and
 its time average ("mean"), in the fault's unit, beside the thesis's values
-(/work/shared/thesis_tables.json when present). `--sigma-x-scale` multiplies estimator.sigma_x
+(config/experiments/thesis_tables.json). `--sigma-x-scale` multiplies the estimator's parts.sigma_x
 (0.2236 = sqrt(dt): the per-step noise if the thesis's values were continuous-time intensities).
 """
 
@@ -13,16 +13,14 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
-from pathlib import Path
 
 import numpy as np
 
 from fdir_service.estimation.factory import build_filter
-from fdir_service.estimation.synthetic import generate
+from sim_bridge.report import thesis_tables
 from sim_bridge.scenario import load_scenario
+from sim_bridge.synthetic import generate
 
-THESIS_TABLES = Path("/work/shared/thesis_tables.json")
 INSTANTS = (10.05, 20.05, 30.05, 40.05)
 
 
@@ -31,16 +29,16 @@ def open_loop_rmse(scenario_id: str, filters: list[str], runs: int = 20, sigma_x
     """{filter: {"f_<id>": {"10.05": ..., "20.05": ..., "30.05": ..., "40.05": ..., "mean": ...}}}."""
     sc = load_scenario(scenario_id)
     if sigma_x_scale != 1.0:
-        est = dataclasses.replace(sc.estimator,
-                                  sigma_x=tuple(np.array(sc.estimator.sigma_x) * sigma_x_scale))
-        sc = dataclasses.replace(sc, estimator=est)
+        parts = sc.estimator.settings
+        parts = dataclasses.replace(parts, sigma_x=tuple(np.array(parts.sigma_x) * sigma_x_scale))
+        sc = dataclasses.replace(sc, estimator=dataclasses.replace(sc.estimator, settings=parts))
     data = [generate(sc, np.random.default_rng(s)) for s in np.random.SeedSequence(seed).spawn(runs)]
     out: dict = {}
     for name in filters:
         fseeds = np.random.SeedSequence(filter_seed).spawn(runs)
         errs = []
         for run, fs in zip(data, fseeds, strict=True):
-            f = build_filter(name, sc, np.random.default_rng(fs))
+            f = build_filter(name, sc.estimator, np.random.default_rng(fs))
             est = np.array([f.step(run.t[k], run.y[k], run.mask[k], run.u[k]).fault_estimate
                             for k in range(run.t.size)])
             errs.append(est - run.faults)
@@ -62,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sigma-x-scale", type=float, default=1.0)
     args = ap.parse_args(argv)
     res = open_loop_rmse(args.scenario, args.filters.split(","), args.runs, args.sigma_x_scale)
-    tables = json.loads(THESIS_TABLES.read_text()) if THESIS_TABLES.exists() else {}
+    tables = thesis_tables()
     keys = [f"{t:.2f}" for t in INSTANTS] + ["mean"]
     print(f"{'filter':8s} {'fault':8s} " + " ".join(f"{k:>7s}" for k in keys) + "   thesis")
     for name, faults in res.items():

@@ -1,8 +1,7 @@
 """`/sim/truth`: the simulator's truth, written frame by frame by `sim-bridge fly --record TRUTH.mcap`.
 
-The truth never goes on the wire; it is recorded beside the flight so `fdir replay --truth` can
-score the estimates (RMSE, detection delay, false-alarm fraction). Fields: see
-`fdir_service.recording.schemas.truth_field_names`.
+The truth never goes on the wire; it is recorded beside the flight so `sim-bridge replay --truth`
+can score the estimates (RMSE, detection delay, false-alarm fraction). Fields: `truth_field_names`.
 """
 
 from __future__ import annotations
@@ -14,10 +13,40 @@ from typing import Any
 
 import numpy as np
 
-from fdir_service.recording import schemas as S
+from fdir_service.recording.logtools import McapLog
+from fdir_service.recording.schemas import NULLABLE_NUMBER, STATE_NAMES, finite_or_none
 from fdir_service.recording.sink import JsonMcapFile
 
 TRUTH_TOPIC = "/sim/truth"
+
+
+def truth_field_names(fault_ids: Sequence[str]) -> list[str]:
+    """Flat fields of `/sim/truth`: time, airframe state, altitude, fault values and mode flags, inputs."""
+    names = ["t", *STATE_NAMES, "h"]
+    names += [f"f_{f}" for f in fault_ids]
+    names += [f"active_{f}" for f in fault_ids]
+    names += ["delta_e", "delta_t"]
+    return names
+
+
+def truth_schema(fault_ids: Sequence[str]) -> dict[str, Any]:
+    props: dict[str, Any] = {}
+    for name in truth_field_names(fault_ids):
+        props[name] = {"type": "boolean"} if name.startswith("active_") else dict(NULLABLE_NUMBER)
+    props["t"]["description"] = "simulation time, s (the clock of time_boot_ms on the wire)"
+    return {
+        "title": "fdir.SimTruth",
+        "description": "Simulator truth at one frame: state z = [p_d, u, w, theta, q] (SI), altitude h, "
+        "each fault's true value (SI) and whether it is active, inputs [delta_e rad, delta_t 0..1].",
+        "type": "object",
+        "properties": props,
+        "required": list(props),
+    }
+
+
+def truth_records(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """The `/sim/truth` records of a truth MCAP, in order."""
+    return [obj for _, obj in McapLog(path).iter_json(TRUTH_TOPIC)]
 
 
 class TruthWriter:
@@ -34,7 +63,7 @@ class TruthWriter:
         self._file = JsonMcapFile(self.path)
         for name, data in (metadata or {}).items():
             self._file.add_metadata(name, {str(k): str(v) for k, v in data.items()})
-        self._file.register(TRUTH_TOPIC, S.truth_schema(self.fault_ids))
+        self._file.register(TRUTH_TOPIC, truth_schema(self.fault_ids))
 
     def write(self, t: float, z: np.ndarray, faults: np.ndarray, u: np.ndarray, *,
               active: np.ndarray | None = None, t_ns: int | None = None) -> None:
@@ -52,14 +81,14 @@ class TruthWriter:
                              f"u {uu.shape} (2,)")
         act = (f != 0.0) if active is None else np.asarray(active, dtype=bool).ravel()
         rec: dict[str, Any] = {"t": float(t)}
-        for name, v in zip(S.STATE_NAMES, z, strict=True):
-            rec[name] = _num(v)
-        rec["h"] = _num(-z[0])
+        for name, v in zip(STATE_NAMES, z, strict=True):
+            rec[name] = finite_or_none(v)
+        rec["h"] = finite_or_none(-z[0])
         for fid, v in zip(self.fault_ids, f, strict=True):
-            rec[f"f_{fid}"] = _num(v)
+            rec[f"f_{fid}"] = finite_or_none(v)
         for fid, a in zip(self.fault_ids, act, strict=True):
             rec[f"active_{fid}"] = bool(a)
-        rec["delta_e"], rec["delta_t"] = _num(uu[0]), _num(uu[1])
+        rec["delta_e"], rec["delta_t"] = finite_or_none(uu[0]), finite_or_none(uu[1])
         self._file.write(TRUTH_TOPIC, rec, round(t * 1e9) if t_ns is None else t_ns)
 
     def close(self) -> None:
@@ -71,8 +100,3 @@ class TruthWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _num(v: float) -> float | None:
-    v = float(v)
-    return v if np.isfinite(v) else None
