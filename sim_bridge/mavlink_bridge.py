@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from fdir_service.mavlink import FDIR_ESTIMATE_ID, dialect, new_mavlink
+from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.mavlink import pack as fast_pack
 from sim_bridge.scenario import Scenario
 
@@ -37,14 +37,6 @@ def elevator_to_pwm(delta_e: float) -> int:
 def throttle_to_pwm(delta_t: float) -> int:
     """Throttle (0..1) -> PWM (us), clipped to 1000..2000."""
     return int(min(max(round(1000.0 + 1000.0 * delta_t), 1000), 2000))
-
-
-def pwm_to_elevator(pwm: float) -> float:
-    return (float(pwm) - 1500.0) / 500.0 * ELEVATOR_PWM_RANGE_RAD
-
-
-def pwm_to_throttle(pwm: float) -> float:
-    return (float(pwm) - 1000.0) / 1000.0
 
 
 class AutopilotLink:
@@ -154,10 +146,3 @@ class LossyLink:
         return out
 
 
-def estimate_state(msg) -> np.ndarray:
-    """The airframe state z_hat (5,) [p_d, u, w, theta, q] of an FDIR_ESTIMATE message."""
-    return np.asarray(msg.state, dtype=float)
-
-
-def is_estimate(msg) -> bool:
-    return msg.get_msgId() == FDIR_ESTIMATE_ID

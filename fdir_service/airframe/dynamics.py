@@ -64,18 +64,6 @@ def _consts_of(p: AirframeParams) -> _Consts:
     )
 
 
-def lift_drag(alpha: np.ndarray, p: AirframeParams) -> tuple[np.ndarray, np.ndarray]:
-    """C_L and C_D at angle of attack alpha (rad): stall-blended lift, quadratic drag."""
-    e_minus = np.exp(np.clip(-p.M * (alpha - p.alpha0), -700.0, 700.0))
-    e_plus = np.exp(np.clip(p.M * (alpha + p.alpha0), -700.0, 700.0))
-    sigma = (1.0 + e_minus + e_plus) / ((1.0 + e_minus) * (1.0 + e_plus))
-    cl_lin = p.C_L0 + p.C_La * alpha
-    sa = np.sin(alpha)
-    cl = (1.0 - sigma) * cl_lin + sigma * (2.0 * np.sign(alpha) * sa * sa * np.cos(alpha))
-    cd = p.C_Dp + cl_lin**2 / (np.pi * p.e * p.AR)
-    return cl, cd
-
-
 def derivatives_rows(ub, wb, th, q, de, dt, p: AirframeParams):
     """dz/dt as five arrays from the state components (ub, wb, th, q) and inputs (de, dt).
 

@@ -52,11 +52,6 @@ class FaultLayout:
         return np.arange(N_AIRFRAME, self.n)
 
     @property
-    def is_sensor(self) -> np.ndarray:
-        """(nf,) bool, True for a sensor fault."""
-        return np.array([k == "sensor" for k in self.kinds], dtype=bool)
-
-    @property
     def sensor_row(self) -> np.ndarray:
         """(nf,) measurement-row index of each sensor fault (-1 for actuator faults)."""
         return np.array([self.measurements.index(t) if k == "sensor" else -1
