@@ -219,7 +219,7 @@ def max_altitude_error(truth_path: Path, command_m: float) -> float | None:
     return max(abs(r["h"] - command_m) for r in recs)
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m sim_bridge.demo", description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="ch4")
     ap.add_argument("--speed", type=float, default=5.0, help="times real time (default 5)")
@@ -228,8 +228,60 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--nav", choices=("truth", "fdir"), default="fdir")
     ap.add_argument("--out", type=Path, default=Path(os.environ.get("FDIR_DEMO_DIR", "demo-output")),
                     help="where the MCAP logs go (default ./demo-output)")
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
 
+
+def _commands(args: argparse.Namespace, p_ap: int, p_gcs: int, log_path: Path,
+              truth_path: Path) -> tuple[list[str], list[str]]:
+    """The `fdir run` and `sim-bridge fly` command lines of the demo."""
+    fdir_cmd = [_python(), "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
+                "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log_path)]
+    if args.filter:
+        fdir_cmd += ["--filter", args.filter]
+    if args.particles:
+        fdir_cmd += ["--particles", str(args.particles)]
+    sim_cmd = [_python(), "-m", "sim_bridge.cli", "fly", args.scenario, "--to", f"udpout:127.0.0.1:{p_ap}",
+               "--speed", str(args.speed), "--nav", args.nav, "--record", str(truth_path), "--wait", "60"]
+    return fdir_cmd, sim_cmd
+
+
+class _View:
+    """The ground station's live line (redrawn on a terminal, every 5 s of flight otherwise) and its
+    STATUSTEXTs, each printed once."""
+
+    def __init__(self, gs: GroundStation, fault_ids: list[str]) -> None:
+        self.gs, self.fault_ids = gs, fault_ids
+        self.tty = sys.stdout.isatty()
+        self.last_print_t, self.last_draw, self.shown = -1e9, 0.0, 0
+
+    def update(self) -> None:
+        now, gs = time.monotonic(), self.gs
+        if self.tty and now - self.last_draw > 0.2:
+            self.last_draw = now
+            width = os.get_terminal_size().columns - 1
+            sys.stdout.write("\r\x1b[2K" + _view_line(gs, self.fault_ids)[:width])
+            sys.stdout.flush()
+        elif not self.tty and math.isfinite(gs.last_t) and gs.last_t - self.last_print_t >= 5.0:
+            self.last_print_t = gs.last_t
+            print(_view_line(gs, self.fault_ids), flush=True)
+        while len(gs.statustexts) > self.shown:
+            t, _, txt = gs.statustexts[self.shown]
+            self.shown += 1
+            print(("\r\x1b[2K" if self.tty else "") + f"[t={t:6.2f}s] STATUSTEXT {txt}", flush=True)
+
+
+def _watch(gs: GroundStation, sim: subprocess.Popen, view: _View) -> None:
+    """Poll the ground station while the simulator flies, and one second after."""
+    while sim.poll() is None:
+        gs.poll(0.05)
+        view.update()
+    deadline = time.monotonic() + 1.0
+    while time.monotonic() < deadline:
+        gs.poll(0.05)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parse_args(argv)
     from sim_bridge.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -240,40 +292,15 @@ def main(argv: list[str] | None = None) -> int:
     truth_path = (args.out / f"truth-demo-{stamp}.mcap").resolve()
     p_ap, p_gcs = free_udp_port(), free_udp_port()
     gs = GroundStation(p_gcs)
-    tty = sys.stdout.isatty()
+    view = _View(gs, fault_ids)
     print(f"demo: scenario {scenario.id}, {args.speed:g}x real time, autopilot flying on the "
           f"{'FDIR estimate' if args.nav == 'fdir' else 'true state'}; ground station on udp {p_gcs}",
           flush=True)
-    fdir_cmd = [_python(), "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
-                "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log_path)]
-    if args.filter:
-        fdir_cmd += ["--filter", args.filter]
-    if args.particles:
-        fdir_cmd += ["--particles", str(args.particles)]
-    sim_cmd = [_python(), "-m", "sim_bridge.cli", "fly", args.scenario, "--to", f"udpout:127.0.0.1:{p_ap}",
-               "--speed", str(args.speed), "--nav", args.nav, "--record", str(truth_path), "--wait", "60"]
+    fdir_cmd, sim_cmd = _commands(args, p_ap, p_gcs, log_path, truth_path)
     service = subprocess.Popen(fdir_cmd, stderr=subprocess.PIPE, text=True)
     sim = subprocess.Popen(sim_cmd, stderr=subprocess.PIPE, text=True)
-    last_print_t, last_draw = -1e9, 0.0
     try:
-        while sim.poll() is None:
-            gs.poll(0.05)
-            now = time.monotonic()
-            if tty and now - last_draw > 0.2:
-                last_draw = now
-                width = os.get_terminal_size().columns - 1
-                sys.stdout.write("\r\x1b[2K" + _view_line(gs, fault_ids)[:width])
-                sys.stdout.flush()
-            elif not tty and math.isfinite(gs.last_t) and gs.last_t - last_print_t >= 5.0:
-                last_print_t = gs.last_t
-                print(_view_line(gs, fault_ids), flush=True)
-            while gs.statustexts and len(gs.statustexts) > getattr(gs, "_shown", 0):
-                t, _, txt = gs.statustexts[getattr(gs, "_shown", 0)]
-                gs._shown = getattr(gs, "_shown", 0) + 1
-                print(("\r\x1b[2K" if tty else "") + f"[t={t:6.2f}s] STATUSTEXT {txt}", flush=True)
-        deadline = time.monotonic() + 1.0
-        while time.monotonic() < deadline:
-            gs.poll(0.05)
+        _watch(gs, sim, view)
     except KeyboardInterrupt:
         sim.send_signal(signal.SIGINT)
     finally:
@@ -282,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
         _, service_err = service.communicate(timeout=30)
         _, sim_err = sim.communicate(timeout=30)
         gs.close()
-    if tty:
+    if view.tty:
         print()
     print(_view_line(gs, fault_ids))
     print("summary:")
