@@ -2,7 +2,8 @@
 table beside the thesis's, ratio ours/thesis) and PNG figures like the thesis's.
 
 Units in reports follow thesis_tables.json: p_d m, u and w m/s, theta deg, q deg/s, f_<id> in the
-fault channel's unit (m, deg, deg/s).
+fault's unit (m, deg, deg/s). Fault rows are the estimator's monitored faults; their truth is the
+world's injected fault of the same id (zero where the world injects none).
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ import numpy as np
 
 from fdir_service.paths import config_dir
 from sim_bridge.campaign import GATE, Campaign, FilterRuns
-from sim_bridge.faults import channel_value
 from sim_bridge.metrics import (
     TABLE_TIMES,
     detection_metrics,
@@ -122,8 +122,9 @@ def thesis_tables() -> dict:
 
 
 def quantities(scenario: Scenario) -> list[tuple[str, str]]:
-    """(name, unit) of every table quantity of the scenario, states first."""
-    return [(q, u) for q, u, _ in STATE_QUANTITIES] + [(f"f_{f.id}", f.unit) for f in scenario.faults]
+    """(name, unit) of every table quantity of the scenario, states first, then the estimated faults."""
+    faults = [(f"f_{f.id}", f.unit) for f in scenario.estimator.faults]
+    return [(q, u) for q, u, _ in STATE_QUANTITIES] + faults
 
 
 def _series(scenario: Scenario, fr: FilterRuns) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -131,7 +132,7 @@ def _series(scenario: Scenario, fr: FilterRuns) -> dict[str, tuple[np.ndarray, n
     out = {}
     for i, (q, _, scale) in enumerate(STATE_QUANTITIES):
         out[q] = (fr.z_hat[:, :, i] * scale, fr.z_true[:, :, i] * scale)
-    for j, f in enumerate(scenario.faults):
+    for j, f in enumerate(scenario.estimator.faults):
         s = 1.0 / f.unit_scale
         out[f"f_{f.id}"] = (fr.f_hat[:, :, j] * s, fr.f_true[:, :, j] * s)
     return out
@@ -163,7 +164,7 @@ def summarise(camp: Campaign) -> dict:
         ok[[f.run for f in fr.failures]] = False
         rmse = {q: table_columns(c, t) for q, c in rmse_curves(sc, fr).items()}
         det = {f.id: detection_metrics(t, fr.prob[ok, :, j], fr.f_true[ok, :, j], hold_s=hold)
-               for j, f in enumerate(sc.faults)}
+               for j, f in enumerate(sc.estimator.faults)}
         doc["filters"][name] = {
             "rmse": rmse, "detection": det,
             "runtime_s": float(np.nanmean(fr.filter_s)),
@@ -204,7 +205,7 @@ def goal_rows(scenario: Scenario, doc: dict, thesis: dict) -> list[dict]:
     prop = scenario.proposed
     th = thesis.get(scenario.id, {}).get("filters", {}).get(prop, {})
     rows = []
-    for f in scenario.faults:
+    for f in scenario.estimator.faults:
         q = f"f_{f.id}"
         ours = doc["filters"].get(prop, {}).get("rmse", {}).get(q, {}).get("mean")
         ref = th.get(q, {}).get("mean")
@@ -340,7 +341,7 @@ def figures(camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]
     names = list(camp.filters)
     col = _colors(names)
     files: list[str] = []
-    nf = len(sc.faults)
+    nf = len(sc.estimator.faults)
 
     def save(fig, name):
         fig.tight_layout()
@@ -350,8 +351,9 @@ def figures(camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]
 
     t_ref = camp.filters[names[0]].t
     windows = {}
-    for j, f in enumerate(sc.faults):
-        active = np.asarray(channel_value(f, t_ref)) != 0.0
+    f_true_ref = camp.filters[names[0]].f_true
+    for j in range(nf):     # the episodes of estimated fault j in the world's injected faults
+        active = np.any(f_true_ref[:, :, j] != 0.0, axis=0)
         windows[j] = [(t_ref[a], t_ref[b - 1]) for a, b in fault_episodes(active)]
 
     def shade(ax, j):
@@ -361,7 +363,7 @@ def figures(camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]
     # 1. median-run fault estimates vs truth, and P(fault), per filter (fault windows shaded)
     fig, axes = plt.subplots(2, nf, figsize=(7 * nf, 7), squeeze=False, sharex=True,
                              gridspec_kw={"height_ratios": [3, 2]})
-    for j, f in enumerate(sc.faults):
+    for j, f in enumerate(sc.estimator.faults):
         s = 1.0 / f.unit_scale
         ax, axp = axes[0, j], axes[1, j]
         shade(ax, j)
@@ -392,7 +394,7 @@ def figures(camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]
     # 2. RMSE vs time, faults and states
     curves = {n: rmse_curves(sc, camp.filters[n]) for n in names}
     fig, axes = plt.subplots(nf, 1, figsize=(10, 3.6 * nf), squeeze=False, sharex=True)
-    for j, f in enumerate(sc.faults):
+    for j, f in enumerate(sc.estimator.faults):
         ax = axes[j, 0]
         shade(ax, j)
         for n in names:
@@ -430,7 +432,7 @@ def figures(camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]
         fr = camp.filters[prop]
         r = doc["filters"][prop]["median_run"]
         fig, axes = plt.subplots(nf, 1, figsize=(9, 3.2 * nf), squeeze=False, sharex=True)
-        for j, f in enumerate(sc.faults):
+        for j, f in enumerate(sc.estimator.faults):
             s = 1.0 / f.unit_scale
             ax = axes[j, 0]
             ax.plot(fr.t, fr.f_true[r, :, j] * s, "k-", lw=1, alpha=0.6, label="truth")
@@ -451,7 +453,7 @@ def figures(camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]
         for n in adaptive:
             fr = camp.filters[n]
             r = doc["filters"][n]["median_run"]
-            for j, f in enumerate(sc.faults):
+            for j, f in enumerate(sc.estimator.faults):
                 axes[0, j].plot(fr.t, fr.pfa[r, :, j], color=col[n], lw=1, label=f"{n} Pfa")
                 axes[0, j].plot(fr.t, fr.pmd[r, :, j], color=col[n], lw=1, ls="--", label=f"{n} Pmd")
                 axes[0, j].set_title(f"{sc.id}: Pfa, Pmd of f_{f.id} (median run)")

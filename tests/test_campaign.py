@@ -207,3 +207,23 @@ def test_report_explains_misses_and_publishes_into_docs(ch4, tmp_path, monkeypat
     publish(tmp_path / "results", tmp_path / "docs")     # report.md rewritten from results.json
     again = (tmp_path / "docs" / "results" / "ch4" / "report.md").read_text()
     assert "**Miss on f_baro**" in again and "Reason: not investigated yet." in again
+
+
+def test_an_estimator_watching_faults_the_world_never_injects_is_scored_per_estimated_fault(ch4, tmp_path):
+    """The default estimator (gnss, baro, theta, q) on the ch4 world (gnss, baro injected): its theta
+    and q rows are scored against a zero truth (false alarms only), nothing is misaligned."""
+    import dataclasses
+
+    from fdir_service.estimator_config import load_estimator
+
+    sc = dataclasses.replace(ch4, estimator=load_estimator().with_filter("RJMRPF", particles=200),
+                             filters=("RJMRPF",), proposed="RJMRPF")
+    camp = run_campaign(sc, 1, seed=0, workers=1, progress=False)
+    doc = write_report(camp, tmp_path, make_figures=True)
+    fd = doc["filters"]["RJMRPF"]
+    assert set(fd["detection"]) == {"gnss", "baro", "theta", "q"}
+    assert fd["detection"]["theta"]["missed_fraction"] is None            # never injected
+    assert fd["detection"]["theta"]["false_alarm_fraction"] < 0.05
+    assert fd["detection"]["gnss"]["delay_s"] < 1.0                        # the 50 m step is found
+    assert fd["rmse"]["f_q"]["mean"] < 0.5                                 # deg/s, about a zero truth
+    assert "| f_theta | deg |" in (tmp_path / "report.md").read_text()
