@@ -29,67 +29,68 @@ def _shade_faults(ax, traj: Trajectory, scenario: Scenario) -> None:
             ax.axvspan(traj.t[a], t1, color=_FAULT_COLOURS[j % len(_FAULT_COLOURS)], alpha=0.10, lw=0)
 
 
-def plot_run(traj: Trajectory, scenario: Scenario, path: str | Path) -> Path:
-    """Write a 4x2 figure of the run to `path` (PNG or anything matplotlib saves); returns the path."""
-    names = scenario.sensors.measurements
-    col = {n: i for i, n in enumerate(names)}
-    t = traj.t
-    deg = np.degrees
-    fig, axes = plt.subplots(4, 2, figsize=(13, 11), sharex=True)
-    ax = axes.ravel()
-
-    # Altitude: truth, GNSS and barometric measurements.
+def _altitude_panel(ax, traj: Trajectory, col: dict[str, int]) -> None:
+    """Altitude: truth, GNSS and barometric measurements."""
     for n, lab in (("gnss_alt", "GNSS altitude (measured)"), ("baro_alt", "baro altitude (measured)")):
         if n in col:
             style = dict(_MEAS_STYLE, color="tab:green" if n == "gnss_alt" else "0.55")
-            ax[0].plot(t, traj.y[:, col[n]], label=lab, **style)
-    ax[0].plot(t, -traj.z[:, 0], "k", lw=1.4, label="true altitude")
-    ax[0].set_title("Altitude")
-    ax[0].set_ylabel("h (m)")
+            ax.plot(traj.t, traj.y[:, col[n]], label=lab, **style)
+    ax.plot(traj.t, -traj.z[:, 0], "k", lw=1.4, label="true altitude")
+    ax.set_title("Altitude")
+    ax.set_ylabel("h (m)")
 
-    va = np.hypot(traj.z[:, 1], traj.z[:, 2])
-    ax[1].plot(t, va, "k", lw=1.4, label="true airspeed $V_a$")
+
+def _state_panel(ax, traj: Trajectory, col: dict[str, int], name: str, i: int, scale: float,
+                 unit: str, title: str) -> None:
+    """One airframe state z[:, i] (times scale) with its measurement row, if any."""
+    if name in col:
+        ax.plot(traj.t, scale * traj.y[:, col[name]], label=f"{name} (measured)", **_MEAS_STYLE)
+    ax.plot(traj.t, scale * traj.z[:, i], "k", lw=1.4, label=f"true {name}")
+    ax.set_title(title)
+    ax.set_ylabel(f"{name} ({unit})" if unit == "m/s" else f"({unit})")
+
+
+def _input_panel(ax, traj: Trajectory) -> None:
+    """Elevator (deg, left axis) and throttle (0..1, right axis) commanded by the autopilot."""
+    ax.plot(traj.t, np.degrees(traj.u[:, 0]), color="tab:blue", lw=1.2, label=r"$\delta_e$ commanded (deg)")
+    axb = ax.twinx()
+    axb.plot(traj.t, traj.u[:, 1], color="tab:orange", lw=1.2, ls="--", label=r"$\delta_t$ commanded (0..1)")
+    ax.set_title("Autopilot inputs")
+    ax.set_ylabel(r"$\delta_e$ (deg)", color="tab:blue")
+    axb.set_ylabel(r"$\delta_t$ (-)", color="tab:orange")
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = axb.get_legend_handles_labels()
+    ax.legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
+
+
+def _fault_panel(ax, traj: Trajectory, scenario: Scenario) -> None:
+    """The world's true faults, each in its unit."""
+    for j, ch in enumerate(scenario.faults):
+        ax.plot(traj.t, traj.faults[:, j] / ch.unit_scale, color=_FAULT_COLOURS[j % 6], lw=1.4,
+                label=f"{ch.id}: {ch.kind} fault on {ch.target} ({ch.unit})")
+    if not scenario.faults:
+        ax.text(0.5, 0.5, "no faults in this scenario", ha="center", va="center", transform=ax.transAxes)
+    ax.set_title("True faults (shaded on every panel while active)")
+    ax.set_ylabel("fault (its unit)")
+
+
+def plot_run(traj: Trajectory, scenario: Scenario, path: str | Path) -> Path:
+    """Write a 4x2 figure of the run to `path` (PNG or anything matplotlib saves); returns the path."""
+    col = {n: i for i, n in enumerate(scenario.sensors.measurements)}
+    fig, axes = plt.subplots(4, 2, figsize=(13, 11), sharex=True)
+    ax = axes.ravel()
+    _altitude_panel(ax[0], traj, col)
+    ax[1].plot(traj.t, np.hypot(traj.z[:, 1], traj.z[:, 2]), "k", lw=1.4, label="true airspeed $V_a$")
     ax[1].set_title("Airspeed")
     ax[1].set_ylabel("$V_a$ (m/s)")
-
-    for a, n, i, lab in ((ax[2], "u", 1, "u"), (ax[3], "w", 2, "w")):
-        if n in col:
-            a.plot(t, traj.y[:, col[n]], label=f"{lab} (measured)", **_MEAS_STYLE)
-        a.plot(t, traj.z[:, i], "k", lw=1.4, label=f"true {lab}")
-        a.set_ylabel(f"{lab} (m/s)")
-    ax[2].set_title("Body velocity u (forward)")
-    ax[3].set_title("Body velocity w (down)")
-
-    for a, n, i, unit, title in ((ax[4], "theta", 3, "deg", "Pitch angle"),
-                                 (ax[5], "q", 4, "deg/s", "Pitch rate")):
-        if n in col:
-            a.plot(t, deg(traj.y[:, col[n]]), label=f"{n} (measured)", **_MEAS_STYLE)
-        a.plot(t, deg(traj.z[:, i]), "k", lw=1.4, label=f"true {n}")
-        a.set_title(title)
-        a.set_ylabel(f"({unit})")
-    ax[4].plot(t, deg(traj.gamma_cmd), color="tab:blue", lw=1.0, ls="--",
+    _state_panel(ax[2], traj, col, "u", 1, 1.0, "m/s", "Body velocity u (forward)")
+    _state_panel(ax[3], traj, col, "w", 2, 1.0, "m/s", "Body velocity w (down)")
+    _state_panel(ax[4], traj, col, "theta", 3, np.degrees(1.0), "deg", "Pitch angle")
+    _state_panel(ax[5], traj, col, "q", 4, np.degrees(1.0), "deg/s", "Pitch rate")
+    ax[4].plot(traj.t, np.degrees(traj.gamma_cmd), color="tab:blue", lw=1.0, ls="--",
                label=r"$\gamma$ command")
-
-    ax[6].plot(t, deg(traj.u[:, 0]), color="tab:blue", lw=1.2, label=r"$\delta_e$ commanded (deg)")
-    ax6b = ax[6].twinx()
-    ax6b.plot(t, traj.u[:, 1], color="tab:orange", lw=1.2, ls="--", label=r"$\delta_t$ commanded (0..1)")
-    ax[6].set_title("Autopilot inputs")
-    ax[6].set_ylabel(r"$\delta_e$ (deg)", color="tab:blue")
-    ax6b.set_ylabel(r"$\delta_t$ (-)", color="tab:orange")
-    h1, l1 = ax[6].get_legend_handles_labels()
-    h2, l2 = ax6b.get_legend_handles_labels()
-    ax[6].legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
-
-    if scenario.faults:
-        for j, ch in enumerate(scenario.faults):
-            ax[7].plot(t, traj.faults[:, j] / ch.unit_scale, color=_FAULT_COLOURS[j % 6], lw=1.4,
-                       label=f"{ch.id}: {ch.kind} fault on {ch.target} ({ch.unit})")
-    else:
-        ax[7].text(0.5, 0.5, "no faults in this scenario", ha="center", va="center",
-                   transform=ax[7].transAxes)
-    ax[7].set_title("True faults (shaded on every panel while active)")
-    ax[7].set_ylabel("fault (its unit)")
-
+    _input_panel(ax[6], traj)
+    _fault_panel(ax[7], traj, scenario)
     for a in ax:
         _shade_faults(a, traj, scenario)
         a.grid(True, lw=0.3, alpha=0.6)

@@ -232,8 +232,9 @@ def _fmt(v, digits: int = 3) -> str:
     return f"{v:.2e}"
 
 
-def markdown(scenario: Scenario, doc: dict, thesis: dict, figures: list[str], wall_s: float | None = None,
-             fig_prefix: str = "", reading_notes: bool = True, explain: bool = True) -> str:
+def markdown(  # noqa: C901 - report assembly: one section after another, each a few lines
+        scenario: Scenario, doc: dict, thesis: dict, figures: list[str], wall_s: float | None = None,
+        fig_prefix: str = "", reading_notes: bool = True, explain: bool = True) -> str:
     """report.md for one scenario. reading_notes: the READING_NOTES under the goal table; explain:
     each miss's EXPLANATIONS entry (combined_markdown gives them once, at the top)."""
     sid = scenario.id
@@ -331,7 +332,8 @@ def _log_floor(ax, decades: float = 3.5) -> None:
         ax.set_ylim(bottom=max(float(np.min(vals)), top * 10.0 ** -decades) / 1.5, top=top * 1.5)
 
 
-def figures(camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]:
+def figures(  # noqa: C901 - figure assembly: one figure after another, each a few lines
+        camp: Campaign, doc: dict, out: Path, prefix: str = "") -> list[str]:
     """Write the PNG figures of a campaign into `out`; return their file names."""
     import matplotlib
     matplotlib.use("Agg")
@@ -499,8 +501,9 @@ def _status(docs: dict[str, dict]) -> list[str]:
     return L + [""]
 
 
-def combined_markdown(root: str | Path, scenario_ids: list[str] | tuple[str, ...], fig_root: str = "",
-                      thesis: dict | None = None, preamble: str = "") -> str:
+def combined_markdown(  # noqa: C901 - report assembly, as `markdown`
+        root: str | Path, scenario_ids: list[str] | tuple[str, ...], fig_root: str = "",
+        thesis: dict | None = None, preamble: str = "") -> str:
     """One document for several campaigns: how they were run, the orderings and goals of all
     scenarios, where and why we miss, then each scenario's report. Reads root/<id>/results.json and
     the PNGs beside it; figures are linked as fig_root + <id>/<file> (e.g. "results/" for

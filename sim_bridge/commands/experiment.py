@@ -38,48 +38,44 @@ def add_parser(subparsers) -> None:
     p.set_defaults(func=main)
 
 
-def main(args: argparse.Namespace) -> int:
-    from sim_bridge.campaign import run_campaign
-    from sim_bridge.report import (
-        REFERENCE_ORDERINGS,
-        check_orderings,
-        combined_markdown,
-        publish,
-        write_report,
-    )
-
+def _check(args: argparse.Namespace) -> None:
     if args.runs < 1:
         raise ConfigError(f"--runs: expected a positive integer, got {args.runs}")
     if args.particles is not None and args.particles < 1:
         raise ConfigError(f"--particles: expected a positive integer, got {args.particles}")
-    ids = list(SCENARIO_IDS) if args.scenario == "all" else [args.scenario]
-    filters = args.filters.split(",") if args.filters else None
-    t0 = time.perf_counter()
-    results = {}
-    outs: dict[str, Path] = {}
-    for sid in ids:
-        sc = load_scenario(sid)
-        if args.out is None:
-            out = Path("results") / sc.id
-        else:
-            out = Path(args.out) / sc.id if args.scenario == "all" else Path(args.out)
-        ts = time.perf_counter()
-        camp = run_campaign(sc, args.runs, args.particles, args.seed, workers=args.workers,
-                            dask=args.dask, progress=not args.quiet, filters=filters)
-        doc = write_report(camp, out, make_figures=not args.no_figures)
-        results[sc.id] = doc
-        outs[sc.id] = out
-        print(f"{sc.id}: {args.runs} runs x {len(camp.filters)} filters "
-              f"({', '.join(camp.filters)}), N = {camp.particles}: {time.perf_counter() - ts:.1f} s "
-              f"-> {out}/report.md")
-        for name, fd in doc["filters"].items():
-            means = ", ".join(f"{q} {v['mean']:.4g}" for q, v in fd["rmse"].items()
-                              if q.startswith("f_") and v["mean"] is not None)
-            print(f"  {name:8s} {fd['step_ms']:.3f} ms/step  mean RMSE {means}")
-    if args.scenario == "all":
-        root = Path(args.out) if args.out is not None else Path("results")
-        (root / "report.md").write_text(combined_markdown(root, ids))
-        print(f"all scenarios: {root}/report.md")
+
+
+def _out_dir(args: argparse.Namespace, sid: str) -> Path:
+    """results/<id>, --out (one scenario) or --out/<id> (all)."""
+    if args.out is None:
+        return Path("results") / sid
+    return Path(args.out) / sid if args.scenario == "all" else Path(args.out)
+
+
+def _run_one(args: argparse.Namespace, sid: str, filters: list[str] | None) -> tuple[str, dict, Path]:
+    """One scenario's campaign and report; prints its summary lines. (id, results doc, folder)."""
+    from sim_bridge.campaign import run_campaign
+    from sim_bridge.report import write_report
+
+    sc = load_scenario(sid)
+    out = _out_dir(args, sc.id)
+    ts = time.perf_counter()
+    camp = run_campaign(sc, args.runs, args.particles, args.seed, workers=args.workers,
+                        dask=args.dask, progress=not args.quiet, filters=filters)
+    doc = write_report(camp, out, make_figures=not args.no_figures)
+    print(f"{sc.id}: {args.runs} runs x {len(camp.filters)} filters "
+          f"({', '.join(camp.filters)}), N = {camp.particles}: {time.perf_counter() - ts:.1f} s "
+          f"-> {out}/report.md")
+    for name, fd in doc["filters"].items():
+        means = ", ".join(f"{q} {v['mean']:.4g}" for q, v in fd["rmse"].items()
+                          if q.startswith("f_") and v["mean"] is not None)
+        print(f"  {name:8s} {fd['step_ms']:.3f} ms/step  mean RMSE {means}")
+    return sc.id, doc, out
+
+
+def _print_orderings(results: dict[str, dict]) -> None:
+    from sim_bridge.report import REFERENCE_ORDERINGS, check_orderings
+
     for o in check_orderings(results):
         rel = " < " if o["strict"] else " <= "
         print(f"ordering {o['scenario']} {o['quantity']}: {rel.join(o['chain'])}: "
@@ -87,13 +83,35 @@ def main(args: argparse.Namespace) -> int:
     for o in check_orderings(results, REFERENCE_ORDERINGS):
         print(f"reference {o['scenario']} {o['quantity']}: {' < '.join(o['chain'])}: "
               f"{'holds' if o['holds'] else 'does not hold'} ({json.dumps(o['values'])})")
+
+
+def _publish(outs: dict[str, Path], docs: str) -> None:
+    from sim_bridge.report import publish
+
+    page = None
+    for sid, out in outs.items():
+        page = publish(out.parent, docs, [sid]) if out.name == sid else _publish_renamed(out, sid, docs)
+    print(f"published: {page} and {Path(docs) / 'results'}/<id>/")
+
+
+def main(args: argparse.Namespace) -> int:
+    from sim_bridge.report import combined_markdown
+
+    _check(args)
+    ids = list(SCENARIO_IDS) if args.scenario == "all" else [args.scenario]
+    filters = args.filters.split(",") if args.filters else None
+    t0 = time.perf_counter()
+    results, outs = {}, {}
+    for sid in ids:
+        key, doc, out = _run_one(args, sid, filters)
+        results[key], outs[key] = doc, out
+    if args.scenario == "all":
+        root = Path(args.out) if args.out is not None else Path("results")
+        (root / "report.md").write_text(combined_markdown(root, ids))
+        print(f"all scenarios: {root}/report.md")
+    _print_orderings(results)
     if args.publish:
-        for sid, out in outs.items():
-            if out.name == sid:
-                page = publish(out.parent, args.publish, [sid])
-            else:
-                page = _publish_renamed(out, sid, args.publish)
-        print(f"published: {page} and {Path(args.publish) / 'results'}/<id>/")
+        _publish(outs, args.publish)
     print(f"wall time {time.perf_counter() - t0:.1f} s")
     return 0
 

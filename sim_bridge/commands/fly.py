@@ -75,6 +75,7 @@ class _Receiver:
         self.service_seen = False
 
     def poll(self, timeout: float) -> None:
+        """Wait up to `timeout` s for data, then read everything available."""
         import select
 
         fd = self.conn.port.fileno()
@@ -88,16 +89,22 @@ class _Receiver:
             if isinstance(data, str):
                 data = data.encode("latin-1")
             for msg in self.link.parse(data):
-                if msg.get_srcComponent() == 191 or msg.get_type() == "FDIR_ESTIMATE":
-                    self.service_seen = True
-                if msg.get_type() == "FDIR_ESTIMATE":
-                    z = np.asarray(msg.state, dtype=float)
-                    self.estimates[msg.time_boot_ms] = z
-                    if self.latest is None or msg.time_boot_ms >= self.latest[0]:
-                        self.latest = (msg.time_boot_ms, z)
-                    if len(self.estimates) > 64:
-                        for k in sorted(self.estimates)[:-32]:
-                            del self.estimates[k]
+                self._take(msg)
+
+    def _take(self, msg) -> None:
+        """Note the service's presence; keep an FDIR_ESTIMATE's state (the last 32-64 frames)."""
+        is_estimate = msg.get_type() == "FDIR_ESTIMATE"
+        if msg.get_srcComponent() == 191 or is_estimate:
+            self.service_seen = True
+        if not is_estimate:
+            return
+        z = np.asarray(msg.state, dtype=float)
+        self.estimates[msg.time_boot_ms] = z
+        if self.latest is None or msg.time_boot_ms >= self.latest[0]:
+            self.latest = (msg.time_boot_ms, z)
+        if len(self.estimates) > 64:
+            for k in sorted(self.estimates)[:-32]:
+                del self.estimates[k]
 
     def wait_for(self, t_ms: int, deadline: float) -> np.ndarray | None:
         while True:
@@ -109,124 +116,163 @@ class _Receiver:
             self.poll(left)
 
 
-def run(args: argparse.Namespace) -> int:
-    from fdir_service.daemon import open_link
+def _check_args(args: argparse.Namespace) -> bytes | None:
+    """ConfigError for a bad --loss, --speed or --key-file; the signing key (None: unsigned)."""
     from fdir_service.errors import ConfigError
-    from sim_bridge.mavlink_bridge import AutopilotLink, LossyLink
-    from sim_bridge.scenario import load_scenario
-    from sim_bridge.simulate import SimStepper, default_autopilot
 
     if not 0.0 <= args.loss < 1.0:
         raise ConfigError(f"--loss: expected a probability in [0, 1), got {args.loss}")
-    lossy = LossyLink(args.loss, args.seed)
     if args.speed < 0:
         raise ConfigError(f"--speed: expected 0 (lockstep) or a positive factor, got {args.speed}")
-    scenario = load_scenario(args.scenario)
-    key = None
-    if args.key_file is not None:
-        try:
-            key = bytes.fromhex(args.key_file.read_text().strip())
-        except (OSError, ValueError):
-            key = b""
-        if len(key) != 32:
-            raise ConfigError(f"--key-file: {args.key_file} must hold 64 hex characters")
-    stepper = SimStepper(scenario, args.seed)
-    ap = default_autopilot(scenario, stepper.airframe)
-    ap.reset()
-    signing_ts = int((time.time() - 1420070400) * 1e5) if key else 0
-    link = AutopilotLink(scenario, key=key, signing_timestamp=signing_ts)
-    conn = open_link(args.to, source_system=1, source_component=1)
-    rx = _Receiver(conn, link)
-    truth = None
-    if args.record is not None:
-        from sim_bridge.truth_log import TruthWriter
+    if args.key_file is None:
+        return None
+    try:
+        key = bytes.fromhex(args.key_file.read_text().strip())
+    except (OSError, ValueError):
+        key = b""
+    if len(key) != 32:
+        raise ConfigError(f"--key-file: {args.key_file} must hold 64 hex characters")
+    return key
 
-        args.record.parent.mkdir(parents=True, exist_ok=True)
-        truth = TruthWriter(args.record, [f.id for f in scenario.faults],
-                            metadata={"scenario": {"id": scenario.id, "seed": str(args.seed),
-                                                   "nav": args.nav, "speed": str(args.speed)}})
-    duration = scenario.duration_s if args.duration is None else args.duration
-    K = int(round(duration / scenario.dt_s))
-    dt = scenario.dt_s
 
-    # Handshake: heartbeats until the service answers (it replies on the link once it hears us).
-    if args.wait > 0:
+def _truth_writer(args: argparse.Namespace, scenario):
+    """The --record TruthWriter, or None."""
+    if args.record is None:
+        return None
+    from sim_bridge.truth_log import TruthWriter
+
+    args.record.parent.mkdir(parents=True, exist_ok=True)
+    return TruthWriter(args.record, [f.id for f in scenario.faults],
+                       metadata={"scenario": {"id": scenario.id, "seed": str(args.seed),
+                                              "nav": args.nav, "speed": str(args.speed)}})
+
+
+class _Flight:
+    """One simulated flight on the wire: per frame, sensors out, the estimate in (lockstep / fdir
+    nav), the autopilot's output out, the truth recorded."""
+
+    def __init__(self, args: argparse.Namespace, scenario, key: bytes | None) -> None:
+        from fdir_service.daemon import open_link
+        from sim_bridge.mavlink_bridge import AutopilotLink, LossyLink
+        from sim_bridge.simulate import SimStepper, default_autopilot
+
+        self.args, self.scenario, self.dt = args, scenario, scenario.dt_s
+        self.lossy = LossyLink(args.loss, args.seed)
+        self.stepper = SimStepper(scenario, args.seed)
+        self.ap = default_autopilot(scenario, self.stepper.airframe)
+        self.ap.reset()
+        signing_ts = int((time.time() - 1420070400) * 1e5) if key else 0
+        self.link = AutopilotLink(scenario, key=key, signing_timestamp=signing_ts)
+        self.conn = open_link(args.to, source_system=1, source_component=1)
+        self.rx = _Receiver(self.conn, self.link)
+        self.truth = _truth_writer(args, scenario)
+        self.lockstep = args.speed == 0
+        self.wait_estimates = self.lockstep or args.nav == "fdir"
+        self.misses = self.consecutive = 0
+        self.max_alt_err = 0.0
+        self.coast: tuple[np.ndarray, int] | None = None   # (state, frame index it describes)
+        self.u_hist: list[np.ndarray] = []
+        self.t_start = time.monotonic()
+
+    def handshake(self) -> None:
+        """Heartbeats until the service answers (it replies on the link once it hears us)."""
+        args, rx = self.args, self.rx
+        if args.wait <= 0:
+            return
         t_wait = time.monotonic() + args.wait
         while not rx.service_seen and time.monotonic() < t_wait:
-            conn.write(link.heartbeat())
+            self.conn.write(self.link.heartbeat())
             rx.poll(0.2)
         if not rx.service_seen:
             print(f"sim-bridge: no service answered on {args.to} within {args.wait:g} s; flying anyway",
                   file=sys.stderr, flush=True)
 
-    lockstep = args.speed == 0
-    wait_estimates = lockstep or args.nav == "fdir"
-    misses = consecutive = 0
-    max_alt_err = 0.0
-    coast: tuple[np.ndarray, int] | None = None  # (state, frame index it describes)
-    u_hist: list[np.ndarray] = []
-    t_start = time.monotonic()
-    try:
-        for k in range(K):
-            fr = stepper.frame()
-            if not lockstep:
-                delay = t_start + k * dt / args.speed - time.monotonic()
-                if delay > 0:
-                    rx.poll(delay)
-            t_ms = int(round(fr.t * 1000))
-            sent = lossy.filter(link.sensor_messages(fr.t, fr.y, fr.mask, fr.static_pressure_pa))
-            if sent:
-                conn.write(b"".join(sent))
-            z_est = None
-            if wait_estimates:
-                if lockstep:
-                    deadline = time.monotonic() + args.timeout
-                else:
-                    deadline = min(time.monotonic() + args.timeout, t_start + (k + 1) * dt / args.speed)
-                z_est = rx.wait_for(t_ms, deadline)
-                if z_est is None:
-                    misses += 1
-                    consecutive += 1
-                    if args.nav == "truth" and lockstep and consecutive >= 3:
-                        wait_estimates = False  # nobody publishes estimates: free-run
-                else:
-                    consecutive = 0
-            else:
-                rx.poll(0.0)
-            if args.nav == "fdir":
-                if z_est is not None:
-                    coast = (z_est, k)
-                    z_nav = z_est
-                elif coast is not None:  # coast: last estimate propagated with the model
-                    z_nav = coast[0].copy()
-                    for j in range(coast[1], k):
-                        z_nav = ap.model.step(z_nav, u_hist[j])
-                else:
-                    z_nav = ap.model.trim.z.copy()
-            else:
-                z_nav = fr.z_true
-            u = ap.update(fr.t, z_nav)
-            sent = lossy.filter(link.actuator_messages(fr.t, u))
-            if sent:
-                conn.write(b"".join(sent))
-            u_hist.append(np.asarray(u, dtype=float).copy())
-            if truth is not None:
-                truth.write(fr.t, fr.z_true, fr.faults, u)
-            max_alt_err = max(max_alt_err, abs(-fr.z_true[0] - ap.altitude_command(fr.t)))
-            stepper.advance(u)
-        rx.poll(0.05)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        if truth is not None:
-            truth.close()
-        conn.close()
-    wall = time.monotonic() - t_start
+    def _send(self, packets: list[bytes]) -> None:
+        sent = self.lossy.filter(packets)
+        if sent:
+            self.conn.write(b"".join(sent))
+
+    def _estimate(self, k: int, t_ms: int) -> np.ndarray | None:
+        """The service's estimate of frame k when the flight waits for it (None: missed / not asked)."""
+        if not self.wait_estimates:
+            self.rx.poll(0.0)
+            return None
+        deadline = time.monotonic() + self.args.timeout
+        if not self.lockstep:
+            deadline = min(deadline, self.t_start + (k + 1) * self.dt / self.args.speed)
+        z_est = self.rx.wait_for(t_ms, deadline)
+        if z_est is not None:
+            self.consecutive = 0
+            return z_est
+        self.misses += 1
+        self.consecutive += 1
+        if self.args.nav == "truth" and self.lockstep and self.consecutive >= 3:
+            self.wait_estimates = False  # nobody publishes estimates: free-run
+        return None
+
+    def _nav_state(self, k: int, z_true: np.ndarray, z_est: np.ndarray | None) -> np.ndarray:
+        """What the autopilot flies on: the truth, the estimate, or the last estimate coasted."""
+        if self.args.nav != "fdir":
+            return z_true
+        if z_est is not None:
+            self.coast = (z_est, k)
+            return z_est
+        if self.coast is None:
+            return self.ap.model.trim.z.copy()
+        z_nav = self.coast[0].copy()        # coast: the last estimate propagated with the model
+        for j in range(self.coast[1], k):
+            z_nav = self.ap.model.step(z_nav, self.u_hist[j])
+        return z_nav
+
+    def frame(self, k: int) -> None:
+        fr = self.stepper.frame()
+        if not self.lockstep:
+            delay = self.t_start + k * self.dt / self.args.speed - time.monotonic()
+            if delay > 0:
+                self.rx.poll(delay)
+        self._send(self.link.sensor_messages(fr.t, fr.y, fr.mask, fr.static_pressure_pa))
+        z_est = self._estimate(k, int(round(fr.t * 1000)))
+        u = self.ap.update(fr.t, self._nav_state(k, fr.z_true, z_est))
+        self._send(self.link.actuator_messages(fr.t, u))
+        self.u_hist.append(np.asarray(u, dtype=float).copy())
+        if self.truth is not None:
+            self.truth.write(fr.t, fr.z_true, fr.faults, u)
+        self.max_alt_err = max(self.max_alt_err, abs(-fr.z_true[0] - self.ap.altitude_command(fr.t)))
+        self.stepper.advance(u)
+
+    def fly(self, K: int) -> None:
+        try:
+            for k in range(K):
+                self.frame(k)
+            self.rx.poll(0.05)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            if self.truth is not None:
+                self.truth.close()
+            self.conn.close()
+
+    def summary(self, K: int) -> str:
+        wall = time.monotonic() - self.t_start
+        args, lossy = self.args, self.lossy
+        return (f"sim-bridge: flew {self.scenario.id} {K * self.dt:g} s in {wall:.2f} s wall "
+                f"({K / max(wall, 1e-9):.0f} frames/s), nav {args.nav}, {self.misses} estimates missed, "
+                f"max |altitude error| {self.max_alt_err:.2f} m"
+                + (f"; {lossy.dropped} of {lossy.sent + lossy.dropped} packets dropped" if args.loss else "")
+                + (f"; truth in {args.record}" if self.truth else ""))
+
+
+def run(args: argparse.Namespace) -> int:
+    from sim_bridge.scenario import load_scenario
+
+    key = _check_args(args)
+    scenario = load_scenario(args.scenario)
+    flight = _Flight(args, scenario, key)
+    duration = scenario.duration_s if args.duration is None else args.duration
+    K = int(round(duration / scenario.dt_s))
+    flight.handshake()
+    flight.t_start = time.monotonic()
+    flight.fly(K)
     if not args.quiet:
-        print(f"sim-bridge: flew {scenario.id} {K * dt:g} s in {wall:.2f} s wall "
-              f"({K / max(wall, 1e-9):.0f} frames/s), nav {args.nav}, {misses} estimates missed, "
-              f"max |altitude error| {max_alt_err:.2f} m"
-              + (f"; {lossy.dropped} of {lossy.sent + lossy.dropped} packets dropped" if args.loss else "")
-              + (f"; truth in {args.record}" if truth else ""),
-              file=sys.stderr, flush=True)
-    return 0 if math.isfinite(max_alt_err) else 1
+        print(flight.summary(K), file=sys.stderr, flush=True)
+    return 0 if math.isfinite(flight.max_alt_err) else 1
