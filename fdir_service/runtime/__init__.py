@@ -1,0 +1,1 @@
+"""The service runtime in parts: screening, frames, health, events, publishing."""
