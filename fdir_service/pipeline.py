@@ -5,8 +5,16 @@ here for existing importers."""
 from fdir_service.runtime.events import OPERATOR_REASONS
 from fdir_service.runtime.frames import AssembledFrame, FrameAssembler
 from fdir_service.runtime.health import MEASURED_STATE, STATE_LABELS
-from fdir_service.runtime.pipeline import (LATENCY_WINDOW, PARTICLES_TOP_K, SIGNING_EPOCH_UNIX_S, FilterFactory,
-                                           MAVLink_message, Pipeline, PipelineObserver, trim_input)
+from fdir_service.runtime.pipeline import (
+    LATENCY_WINDOW,
+    PARTICLES_TOP_K,
+    SIGNING_EPOCH_UNIX_S,
+    FilterFactory,
+    MAVLink_message,
+    Pipeline,
+    PipelineObserver,
+    trim_input,
+)
 from fdir_service.runtime.publishing import Publisher
 from fdir_service.runtime.screening import COMMAND_MESSAGES, DUPLICATE_MEMORY
 

@@ -19,9 +19,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fdir_service.runtime.events import Event, FramesMissing, Rejected, SensorRecovered, SensorStale, TimeJumped
-from fdir_service.runtime.screening import (LATE_MEASUREMENT, NO_TIMESTAMP, SURPLUS, TIME_JUMP, FrozenRows,
-                                            Rejections, field_value, matches_where, message_time_us)
+from fdir_service.runtime.events import (
+    Event,
+    FramesMissing,
+    Rejected,
+    SensorRecovered,
+    SensorStale,
+    TimeJumped,
+)
+from fdir_service.runtime.screening import (
+    LATE_MEASUREMENT,
+    NO_TIMESTAMP,
+    SURPLUS,
+    TIME_JUMP,
+    FrozenRows,
+    Rejections,
+    field_value,
+    matches_where,
+    message_time_us,
+)
 from fdir_service.service_config import FieldMap, ServiceConfig
 
 JUMP_CONFIRM_MESSAGES = 10

@@ -44,8 +44,15 @@ from fdir_service import __version__
 from fdir_service.estimation.base import Filter, StepOutput
 from fdir_service.estimator_config import EstimatorConfig
 from fdir_service.mavlink import dialect, dialect_text, new_mavlink
-from fdir_service.runtime.events import (Event, FilterStepFailed, HealthProblem, LinkLost, LinkRegained,
-                                         PipelineClosed, Reinitialised)
+from fdir_service.runtime.events import (
+    Event,
+    FilterStepFailed,
+    HealthProblem,
+    LinkLost,
+    LinkRegained,
+    PipelineClosed,
+    Reinitialised,
+)
 from fdir_service.runtime.frames import AssembledFrame, FrameAssembler
 from fdir_service.runtime.health import INPUT_RESUMED, NON_FINITE, EstimatorHealth, filter_raised
 from fdir_service.runtime.publishing import Publisher, RateLimit, link_notice, sensor_notice
@@ -363,7 +370,8 @@ class Pipeline:
         self.filter = self._new_filter(x0)
         self.monitor.reinitialised(self.filter, frame.time_us)
         self.reinitialisations += 1
-        masked = tuple(n for n, a, b in zip(self.assembler.names, frame.mask, keep, strict=True) if a and not b)
+        names = self.assembler.names
+        masked = tuple(n for n, a, b in zip(names, frame.mask, keep, strict=True) if a and not b)
         state = (float(x0[0]), float(x0[1]), float(x0[2]), float(x0[3]), float(x0[4]))
         self._emit(Reinitialised(frame.time_s, problem, state, masked), t_ns)
         if self.reinit_notices.due("reinit", frame.time_us):

@@ -168,7 +168,8 @@ class Publisher:
             msgs += self.named_values(frame.time_boot_ms, out)
         events = [self._declaration(frame, out, i, declared, text) for i, declared, text in changes]
         for e in events:
-            sev = dialect.MAV_SEVERITY_WARNING if isinstance(e, FaultDeclared) else dialect.MAV_SEVERITY_NOTICE
+            declared = isinstance(e, FaultDeclared)
+            sev = dialect.MAV_SEVERITY_WARNING if declared else dialect.MAV_SEVERITY_NOTICE
             msgs.append(self.statustext(sev, e.statustext))
         return msgs, events
 

@@ -22,8 +22,14 @@ from collections.abc import Callable, Sequence
 from functools import reduce
 
 from fdir_service.mavlink import dialect
-from fdir_service.runtime.events import (Event, OtherSystemIgnored, Rejected, RejectionSummary, SensorFrozen,
-                                        SensorUnfrozen)
+from fdir_service.runtime.events import (
+    Event,
+    OtherSystemIgnored,
+    Rejected,
+    RejectionSummary,
+    SensorFrozen,
+    SensorUnfrozen,
+)
 from fdir_service.runtime.publishing import RateLimit
 from fdir_service.service_config import FieldMap
 
