@@ -204,6 +204,9 @@ class FrameAssembler:
         self.names = tuple(fm.name for fm in config.measurements)
         self.m = len(self.names)
         self.by_message = routes_by_message(config)
+        # message types without a where-filter: every route applies; value = has a measurement row
+        self.plain = {mtype: any(r.kind == "y" for r in routes) for mtype, routes in self.by_message.items()
+                      if not any(r.where for r in routes)}
         # message "kinds" a frame waits for: message name + its where-filter
         self.kinds = [self._kind(fm) for fm in config.measurements]
         self.required = set(self.kinds)
@@ -269,22 +272,25 @@ class FrameAssembler:
     # ------------------------------------------------------------------ messages
     def accept(self, msg) -> list[AssembledFrame]:
         """Take one decoded message; return the frames it completes (oldest first)."""
-        routes = self.by_message.get(msg.get_type())
+        mtype = msg.get_type()
+        routes = self.by_message.get(mtype)
         if not routes:
             return []
         t_us = message_time_us(msg)
         if t_us is None:
             self.rejected.add(NO_TIMESTAMP)
             return []
-        matched = [r for r in routes if matches_where(msg, r.where)]
+        is_meas = self.plain.get(mtype)
+        matched = routes if is_meas is not None else self._matching(msg, routes)
         if not matched:
-            self.rejected.add(Rejected("not matching where", msg.get_type()))
+            self.rejected.add(Rejected("not matching where", mtype))
             return []
-        k = self.frame_index(t_us)
+        if is_meas is None:
+            is_meas = any(r.kind == "y" for r in matched)
+        k = (t_us + self.period_us // 2) // self.period_us   # frame_index(t_us)
         if not self._in_clock(k):
             return []
         self._take_inputs(msg, matched, k)
-        is_meas = any(r.kind == "y" for r in matched)
         if self.last_index is not None and k <= self.last_index:
             if is_meas:
                 self._count_late(k, t_us)
@@ -293,6 +299,11 @@ class FrameAssembler:
         if is_meas:
             out += self._take_measurements(msg, matched, k, t_us)
         return out
+
+    @staticmethod
+    def _matching(msg, routes: list[Route]) -> list[Route]:
+        """The routes whose where-filter the message passes."""
+        return [r for r in routes if matches_where(msg, r.where)]
 
     def _take_inputs(self, msg, routes: list[Route], k: int) -> None:
         """Record the message's input values (u) for frame k; bad or late ones are counted."""

@@ -304,9 +304,12 @@ class Pipeline:
 
     def _report_rejections(self, out: list[bytes], t_ns: int) -> None:
         """Log the source filter's notices, then what `RejectionReport` says about the counts."""
-        for event in self.source.events:
-            self._emit(event, t_ns)
-        self.source.events.clear()
+        if self.source.events:
+            for event in self.source.events:
+                self._emit(event, t_ns)
+            self.source.events.clear()
+        if self.rejected.added + self.assembler.rejected.added == self.rejection_report.reported:
+            return   # nothing new (the common case, checked once per feed)
         events, texts = self.rejection_report.report((self.rejected, self.assembler.rejected),
                                                      self._last_frame_us)
         for text in texts:

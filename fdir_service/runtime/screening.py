@@ -59,16 +59,18 @@ SURPLUS = Rejected("surplus (above frame rate)")
 
 class Rejections(Counter[str]):
     """Dropped input by key (a `Counter`: "gnss_alt out of range" -> n), remembering the typed
-    `Rejected` behind each key (`kind(key)`)."""
+    `Rejected` behind each key (`kind(key)`); `added`: everything counted so far by `add`."""
 
     def __init__(self) -> None:
         super().__init__()
         self.kinds: dict[str, Rejected] = {}
+        self.added = 0
 
     def add(self, rejected: Rejected, n: int = 1) -> None:
         """Count n drops of this kind."""
         key = rejected.key
         self[key] += n
+        self.added += n
         if key not in self.kinds:
             self.kinds[key] = rejected
 
@@ -205,7 +207,13 @@ def read_value(msg, fm: FieldMap) -> float:
 
 def field_value(msg, fm: FieldMap) -> float | None:
     """The mapped value (SI) if finite and within [fm.min, fm.max], else None ("out of range")."""
-    v = read_value(msg, fm)
+    raw = getattr(msg, fm.field)   # read_value, inlined: once per mapped field of every message
+    if fm.index is not None:
+        raw = raw[fm.index]
+    try:
+        v = fm.convert(raw)
+    except (TypeError, ValueError, OverflowError):
+        return None
     return v if math.isfinite(v) and fm.min <= v <= fm.max else None
 
 
@@ -265,7 +273,7 @@ class RejectionReport:
 
     def report(self, counters: Sequence[Rejections], now_us: int) -> tuple[list[Event], list[str]]:
         """(events, STATUSTEXT texts) for the counts so far (`counters` summed) at frame time now_us."""
-        n = sum(c.total() for c in counters)
+        n = sum(c.added for c in counters)
         if n == self.reported:
             return [], []
         total: Counter[str] = reduce(operator.add, counters, Counter())
