@@ -350,6 +350,7 @@ class Pipeline:
             return out
         keep = self._reinitialise(frame, problem, msgs, t_ns)
         out, _ = self._filter_step(frame, keep, t_ns)
+        # checked like any step (its counters advance), but only a non-finite estimate stops it
         if out is None or self.monitor.problem(out, self.filter) is NON_FINITE:
             return None
         return out
