@@ -59,6 +59,28 @@ def _fileno(conn) -> int | None:
     return fd if isinstance(fd, int) else None
 
 
+class _Progress:
+    """When the pipeline last stepped a frame and when an idle HEARTBEAT was last sent (monotonic s)."""
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s = period_s
+        self.frames = -1
+        self.last_progress = -1e9
+        self.last_idle_hb = -1e9
+
+    def seen(self, frames: int, now: float) -> None:
+        if frames != self.frames:
+            self.frames, self.last_progress = frames, now
+
+    def heartbeat_due(self, frames: int, now: float) -> bool:
+        """Whether no frame for a heartbeat period and no idle HEARTBEAT for one; if so, counts it sent."""
+        self.seen(frames, now)
+        if now - self.last_progress >= self.period_s and now - self.last_idle_hb >= self.period_s:
+            self.last_idle_hb = now
+            return True
+        return False
+
+
 class Daemon:
     """Runs a `Pipeline` between an autopilot link and ground-station links until stopped."""
 
@@ -92,68 +114,84 @@ class Daemon:
 
     def run(self, *, install_signals: bool = True, max_seconds: float | None = None) -> int:
         """Serve until SIGINT/SIGTERM (or `stop()`, or max_seconds of wall time); returns 0."""
-        if install_signals:
-            old = {s: signal.signal(s, self.stop) for s in (signal.SIGINT, signal.SIGTERM)}
-        hb_period = self.pipeline.config.publish.heartbeat_period_s
-        link_timeout = self.pipeline.config.health.link_timeout_s
-        last_frames, last_progress, last_idle_hb = -1, -1e9, -1e9
+        old = ({s: signal.signal(s, self.stop) for s in (signal.SIGINT, signal.SIGTERM)}
+               if install_signals else {})
         t_end = None if max_seconds is None else time.monotonic() + max_seconds
-        self.log(f"fdir: {self.pipeline.filter_name} N={self.pipeline.particles} on estimator "
-                 f"{self.pipeline.estimator.id}; autopilot link {self.master_url}"
-                 + (f"; ground stations {', '.join(self.gcs_urls)}" if self.gcs_urls else "")
-                 + ("; signing on" if self.pipeline.signed else ""))
+        self.log(self._banner())
         self.pipeline.defer_observers(True)
         try:
-            while not self.stop_event.is_set():
-                now = time.monotonic()
-                if t_end is not None and now >= t_end:
-                    break
-                fds = [fd for fd in (_fileno(self.master),) if fd is not None]
-                if fds:
-                    try:
-                        ready, _, _ = select.select(fds, [], [], 0.1)
-                    except InterruptedError:
-                        continue
-                else:  # e.g. a link without a pollable descriptor
-                    ready = [None]
-                    time.sleep(0.001)
-                if ready:
-                    self._drain_master()
-                else:   # idle link: write what the recorder still holds
-                    self.pipeline.drain_observers()
-                    self._undrained = 0
-                now = time.monotonic()
-                if self.pipeline.frames != last_frames:
-                    last_frames, last_progress = self.pipeline.frames, now
-                silent = now - self.last_input
-                if self.bytes_in and not self.pipeline.link_lost and silent >= link_timeout:
-                    self.link_lost_events += 1
-                    self.log(f"fdir: link lost: no input for {silent:.1f} s")
-                    self._send(b"".join(self.pipeline.set_link_lost(True, silent, time.time_ns())))
-                    self.pipeline.drain_observers()
-                if (self.bytes_in and now - last_progress >= hb_period
-                        and now - last_idle_hb >= hb_period):
-                    last_idle_hb = now
-                    self._send(self.pipeline.heartbeat(time.time_ns()))
-                    self.pipeline.drain_observers()
+            self._serve(t_end)
         finally:
-            tail = self.pipeline.close(time.time_ns())
-            if tail:
-                self._send(b"".join(tail))
-            self.pipeline.drain_observers()
-            if install_signals:
-                for s, h in old.items():
-                    signal.signal(s, h)
-            for conn in [self.master, *self.gcs]:
-                try:
-                    conn.close()
-                except OSError:
-                    pass
-            counts = self.pipeline.rejected_counts
-            self.log(f"fdir: stopped after {self.pipeline.frames} frames; "
-                     f"{self.bytes_in} bytes in, {self.bytes_out} bytes out; rejected input: "
-                     + (", ".join(f"{k} {v}" for k, v in sorted(counts.items())) or "none"))
+            self._shutdown(old)
         return 0
+
+    def _banner(self) -> str:
+        p = self.pipeline
+        return (f"fdir: {p.filter_name} N={p.particles} on estimator {p.estimator.id}; "
+                f"autopilot link {self.master_url}"
+                + (f"; ground stations {', '.join(self.gcs_urls)}" if self.gcs_urls else "")
+                + ("; signing on" if p.signed else ""))
+
+    def _serve(self, t_end: float | None) -> None:
+        """The loop: wait up to 0.1 s for input, feed it, supervise the link (wall clock)."""
+        watch = _Progress(self.pipeline.config.publish.heartbeat_period_s)
+        while not self.stop_event.is_set():
+            if t_end is not None and time.monotonic() >= t_end:
+                break
+            try:
+                ready = self._wait_for_input()
+            except InterruptedError:
+                continue
+            if ready:
+                self._drain_master()
+            else:   # idle link: write what the recorder still holds
+                self.pipeline.drain_observers()
+                self._undrained = 0
+            self._supervise(watch, time.monotonic())
+
+    def _wait_for_input(self) -> bool:
+        """Whether the autopilot link has input (select, 0.1 s); True for a link without a pollable
+        descriptor (after a 1 ms nap). May raise InterruptedError."""
+        fds = [fd for fd in (_fileno(self.master),) if fd is not None]
+        if not fds:
+            time.sleep(0.001)
+            return True
+        ready, _, _ = select.select(fds, [], [], 0.1)
+        return bool(ready)
+
+    def _supervise(self, watch: _Progress, now: float) -> None:
+        """Link loss after health.link_timeout_s without input; an idle HEARTBEAT when no frame
+        has produced one for a heartbeat period (monotonic s)."""
+        if not self.bytes_in:
+            watch.seen(self.pipeline.frames, now)
+            return
+        silent = now - self.last_input
+        if not self.pipeline.link_lost and silent >= self.pipeline.config.health.link_timeout_s:
+            self.link_lost_events += 1
+            self.log(f"fdir: link lost: no input for {silent:.1f} s")
+            self._send(b"".join(self.pipeline.set_link_lost(True, silent, time.time_ns())))
+            self.pipeline.drain_observers()
+        if watch.heartbeat_due(self.pipeline.frames, now):
+            self._send(self.pipeline.heartbeat(time.time_ns()))
+            self.pipeline.drain_observers()
+
+    def _shutdown(self, old_handlers: dict) -> None:
+        """Close the pipeline (sending its tail), restore signals, close links, log the counts."""
+        tail = self.pipeline.close(time.time_ns())
+        if tail:
+            self._send(b"".join(tail))
+        self.pipeline.drain_observers()
+        for s, h in old_handlers.items():
+            signal.signal(s, h)
+        for conn in [self.master, *self.gcs]:
+            try:
+                conn.close()
+            except OSError:
+                pass
+        counts = self.pipeline.rejected_counts
+        self.log(f"fdir: stopped after {self.pipeline.frames} frames; "
+                 f"{self.bytes_in} bytes in, {self.bytes_out} bytes out; rejected input: "
+                 + (", ".join(f"{k} {v}" for k, v in sorted(counts.items())) or "none"))
 
     def _drain_master(self) -> None:
         """Read and feed what the autopilot link has. The recorder's queue is drained right after a

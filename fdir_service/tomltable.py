@@ -59,6 +59,42 @@ def _is_number(v: Any) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
+def _is_integer(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _same(v: Any) -> Any:
+    return v
+
+
+_IS_KIND: dict[str, Callable[[Any], bool]] = {
+    "number": _is_number,
+    "integer": _is_integer,
+    "string": lambda v: isinstance(v, str),
+    "boolean": lambda v: isinstance(v, bool),
+    "numbers": lambda v: isinstance(v, list) and all(_is_number(x) for x in v),
+    "strings": lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v),
+}
+"""Whether a parsed TOML value is of each kind."""
+_CONVERT: dict[str, Callable[[Any], Any]] = {
+    "number": float,
+    "numbers": lambda v: tuple(float(x) for x in v),
+    "strings": tuple,
+}
+"""How a value of the kind is returned (other kinds: as parsed)."""
+
+
+def _check_choices(full: str, kind: str, val: Any, choices: tuple[str, ...]) -> None:
+    """Raise unless the "string" val (or each of the "strings" val) is one of choices."""
+    if kind != "strings":
+        if val not in choices:
+            raise ConfigError(f"{full}: expected one of {', '.join(choices)}, got {val!r}")
+        return
+    for v in val:
+        if v not in choices:
+            raise ConfigError(f"{full}: {v!r} is not one of {', '.join(choices)}")
+
+
 class TomlTable:
     """One TOML table being consumed: every key must be taken, else `finish` reports it as unknown.
 
@@ -90,37 +126,15 @@ class TomlTable:
             if default is ...:
                 raise ConfigError(f"{self.key(name)}: missing, expected {_EXPECT[kind]}")
             return default
+        if kind not in _IS_KIND:
+            raise ValueError(f"unknown kind {kind!r}")
         val = self._data.pop(name)
         full = self.key(name)
-        if kind == "number":
-            ok = _is_number(val)
-        elif kind == "integer":
-            ok = isinstance(val, int) and not isinstance(val, bool)
-        elif kind == "string":
-            ok = isinstance(val, str)
-        elif kind == "boolean":
-            ok = isinstance(val, bool)
-        elif kind == "numbers":
-            ok = isinstance(val, list) and all(_is_number(v) for v in val)
-        elif kind == "strings":
-            ok = isinstance(val, list) and all(isinstance(v, str) for v in val)
-        else:
-            raise ValueError(f"unknown kind {kind!r}")
-        if not ok:
+        if not _IS_KIND[kind](val):
             raise ConfigError(f"{full}: expected {_EXPECT[kind]}, got {val!r}")
-        if kind == "number":
-            val = float(val)
-        elif kind == "numbers":
-            val = tuple(float(v) for v in val)
-        elif kind == "strings":
-            val = tuple(val)
+        val = _CONVERT.get(kind, _same)(val)
         if choices:
-            if kind == "strings":
-                for v in val:
-                    if v not in choices:
-                        raise ConfigError(f"{full}: {v!r} is not one of {', '.join(choices)}")
-            elif val not in choices:
-                raise ConfigError(f"{full}: expected one of {', '.join(choices)}, got {val!r}")
+            _check_choices(full, kind, val, choices)
         if check is not None and not check.test(val):
             shown = list(val) if isinstance(val, tuple) else val   # a list as written in TOML
             raise ConfigError(f"{full}: expected {check.expect}, got {shown!r}")

@@ -8,6 +8,7 @@ the filter, is configured off here so that the glitch reaches the filter."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from support import CH4, ch4_service  # noqa: F401
 from test_hardening_input import Events
 from test_service_helpers import FakeFilter
@@ -15,6 +16,7 @@ from test_service_helpers import FakeFilter
 from fdir_service.estimation.base import StepOutput
 from fdir_service.mavlink import new_mavlink
 from fdir_service.pipeline import Pipeline
+from fdir_service.runtime.events import Cause, FaultDeclared, FilterStepFailed, HealthProblem, Reinitialised
 from fdir_service.service_config import default_config_path
 
 NO_GATE = ch4_service(
@@ -53,9 +55,9 @@ def test_gate_drops_the_glitch_by_default():
     assert pipe.rejected_counts["gnss_alt out of range"] == 1 and pipe.reinitialisations == 0
 
 
-def _declared(ev) -> list[tuple[float, str]]:
-    """(frame time, text) of every fault declaration event."""
-    return [(float(t.split("(t=")[1].split()[0]), t) for _, t in ev.events if " fault " in t and "(t=" in t]
+def _declared(ev) -> list[tuple[float, FaultDeclared]]:
+    """(frame time, event) of every fault declaration."""
+    return [(e.time_s, e) for e in ev.of(FaultDeclared)]
 
 
 def test_altitude_glitch_causes_no_false_declaration():
@@ -67,10 +69,11 @@ def test_altitude_glitch_causes_no_false_declaration():
     msgs, truth = fly(pipe, 300, 100)           # glitch at t = 5.00 s; GNSS fault +50 m from 10 s
     est = ev.estimates
     assert len(est) == 300
-    reinit = [t for _, t in ev.events if "re-initialised" in t]
+    reinit = ev.of(Reinitialised)
     assert pipe.reinitialisations == len(reinit) <= 1
     if reinit:
-        assert "t=5.00 s (p_d jump" in reinit[0]
+        assert reinit[0].time_s == pytest.approx(5.0) and reinit[0].cause.cause is Cause.STATE_JUMP
+        assert reinit[0].cause.text.startswith("p_d jump")
     for k in range(100, 200):                   # every published estimate stays on the aircraft
         (z, f), o = truth[k], est[k]
         assert abs(o.x_mean[0] - z[0]) < 5.0, (k, o.x_mean[0] - z[0])
@@ -126,9 +129,11 @@ def test_state_jump_restarts_the_filter_on_that_frame_without_a_false_declaratio
     # the astray step was caught before publishing: the filter was rebuilt from the frame's
     # measurements (baro wins, the glitching GNSS row is masked) and the frame stepped again
     assert pipe.reinitialisations == 1 and len(made) == 2
-    reinit = [t for _, t in ev.events if "re-initialised" in t]
-    assert len(reinit) == 1 and "t=5.00 s (p_d jump -2e+04/frame)" in reinit[0]
-    assert "masked this frame: gnss_alt" in reinit[0]
+    (reinit,) = ev.of(Reinitialised)
+    assert reinit.time_s == pytest.approx(5.0) and reinit.cause == HealthProblem(Cause.STATE_JUMP,
+                                                                                 "p_d jump -2e+04/frame")
+    assert reinit.masked == ("gnss_alt",) and reinit.level == "warning"
+    assert abs(reinit.state[0] - truth[100][0][0]) < 15.0      # p_d from the baro, not the glitch
     assert made[1].calls[0][0] == 5.0 and not made[1].calls[0][2][0]
     st = [m.text for m in msgs if m.get_type() == "STATUSTEXT"]
     assert "FDIR estimator restart: p_d jump -2e+04/frame" in st
@@ -149,8 +154,9 @@ def test_without_the_jump_check_degeneracy_restarts_it_late_after_false_declarat
     pipe, ev, made = _astray_pipeline(NO_GATE_NO_JUMP)
     msgs, truth = fly(pipe, 300, 100)
     assert pipe.reinitialisations == 1
-    reinit = [t for _, t in ev.events if "re-initialised" in t]
-    assert len(reinit) == 1 and "t=5.45 s (N_eff < 1.5 for 10 frames)" in reinit[0]
+    (reinit,) = ev.of(Reinitialised)
+    assert reinit.time_s == pytest.approx(5.45) and reinit.cause == HealthProblem(Cause.DEGENERATE,
+                                                                                  "N_eff < 1.5 for 10 frames")
     st = [m.text for m in msgs if m.get_type() == "STATUSTEXT"]
     assert "FDIR estimator restart: N_eff < 1.5 for 10 frames" in st
     false = [(t, x) for t, x in _declared(ev) if t < 10.0]
@@ -176,7 +182,9 @@ def test_filter_exception_reinitialises_instead_of_crashing():
     pipe = Pipeline(NO_GATE, filter_factory=factory, observers=[ev])
     msgs, _ = fly(pipe, 60, None)
     assert len(made) == 2 and pipe.reinitialisations == 1 and len(ev.estimates) == 60
-    assert any("filter step failed at t=2.00 s: LinAlgError" in t for lvl, t in ev.events if lvl == "error")
+    (failed,) = ev.of(FilterStepFailed)
+    assert failed.time_s == pytest.approx(2.0) and failed.error == "LinAlgError" and failed.level == "error"
+    assert ev.of(Reinitialised)[0].cause.cause is Cause.FILTER_RAISED
     assert "FDIR estimator restart: filter raised LinAlgError" in [m.text for m in msgs
                                                                    if m.get_type() == "STATUSTEXT"]
 
@@ -213,7 +221,9 @@ def test_non_finite_estimate_reinitialises_and_is_never_published():
     assert made[1].calls[0][0] == 2.0          # the frame is stepped again by the new filter
     est = [m for m in msgs if m.get_type() == "FDIR_ESTIMATE"]
     assert len(est) == 80 and all(np.isfinite(m.state).all() for m in est)
-    assert any("non-finite estimate" in t for lvl, t in ev.events if lvl == "error")
+    (reinit,) = ev.of(Reinitialised)
+    assert reinit.cause.cause is Cause.NON_FINITE and reinit.level == "error"
+    assert reinit.time_s == pytest.approx(2.0)
     assert "FDIR estimator restart: non-finite estimate" in [m.text for m in msgs
                                                                if m.get_type() == "STATUSTEXT"]
     hb = [m for m in msgs if m.get_type() == "HEARTBEAT"]
@@ -221,8 +231,6 @@ def test_non_finite_estimate_reinitialises_and_is_never_published():
 
 
 def test_max_state_jump_is_validated():
-    import pytest
-
     from fdir_service.service_config import ConfigError
 
     base = default_config_path().read_text()

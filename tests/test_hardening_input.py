@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import struct
+from typing import TypeVar
 
 import numpy as np
 import pytest
@@ -18,6 +19,16 @@ from test_service_helpers import autopilot_stream, fake_factory
 
 from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.pipeline import Pipeline
+from fdir_service.runtime.events import (
+    Event,
+    OtherSystemIgnored,
+    Rejected,
+    SensorFrozen,
+    SensorUnfrozen,
+    TimeJumped,
+)
+
+E = TypeVar("E", bound=Event)
 
 CFG = ch4_service()
 STREAM = autopilot_stream(12.0, seed=4)          # 240 frames of a truth-flown ch4 flight
@@ -25,11 +36,16 @@ PACKETS = [b for _, s, a in STREAM for b in s + a]
 
 
 class Events:
-    """A PipelineObserver keeping events and every estimate."""
+    """A PipelineObserver keeping events (as logged, and typed) and every estimate."""
 
     def __init__(self) -> None:
         self.events: list[tuple[str, str]] = []
+        self.typed: list[Event] = []
         self.estimates: list = []
+
+    def of(self, cls: type[E]) -> list[E]:
+        """The typed events of one class, in order."""
+        return [e for e in self.typed if isinstance(e, cls)]
 
     def on_metadata(self, name, data): pass
     def on_raw(self, direction, data, t_ns): pass
@@ -41,6 +57,9 @@ class Events:
 
     def on_event(self, level, text, t_ns):
         self.events.append((level, text))
+
+    def on_runtime_event(self, event, t_ns):
+        self.typed.append(event)
 
 
 def fake_pipeline(cfg=None):
@@ -106,8 +125,9 @@ def test_mavlink1_unknown_ids_and_commands_are_dropped_counted_and_reported():
     ref, _, _ = fake_pipeline()
     feed_all(ref, PACKETS[:600])
     assert ref.frames == pipe.frames
-    events = " | ".join(t for _, t in ev.events)
-    assert "first mavlink1" in events and "first command ignored (COMMAND_LONG)" in events
+    first = ev.of(Rejected)
+    assert Rejected("mavlink1") in first and Rejected("command ignored", "COMMAND_LONG") in first
+    assert Rejected("unknown message id") in first
     st_ = texts(msgs)
     # operator-relevant: reported, but rate-limited (first occurrence, then once per 10 s of frame time)
     assert sum("command ignored" in t for t in st_) == 1
@@ -132,7 +152,7 @@ def test_duplicated_and_reordered_packets():
     times = [t for t, *_ in filt[0].calls]
     assert np.all(np.diff(times) > 0)               # the filter's time never goes back
     assert not any("duplicate" in t for t in texts(msgs))   # normal on a radio link: no STATUSTEXT
-    assert any("first duplicate" in t for _, t in ev.events)
+    assert Rejected("duplicate") in ev.of(Rejected)
 
 
 def reencode(packet: bytes, **changes) -> bytes:
@@ -157,7 +177,7 @@ def test_timestamps_jumping_back_or_forward_once_are_dropped_not_followed():
     feed_all(pipe, packets)
     assert pipe.rejected_counts["time jump"] == 4
     assert pipe.frames >= 235
-    assert not any("restarting the frame clock" in t for _, t in ev.events)
+    assert not ev.of(TimeJumped)
     assert_filter_inputs_finite(filt[0])
 
 
@@ -166,7 +186,8 @@ def test_a_confirmed_time_jump_restarts_the_frame_clock():
     packets = PACKETS[: 7 * 120]   # about 6 s
     # the autopilot reboots: its clock restarts at 0 (the same stream again)
     msgs = feed_all(pipe, packets + packets)
-    assert any("time jumped back" in t for _, t in ev.events), ev.events
+    (jump,) = ev.of(TimeJumped)
+    assert jump.backward and jump.to_s < 0.2 < 5.5 < jump.from_s, jump
     assert any("time jumped back" in t for t in texts(msgs))
     # the filter is rebuilt from the measurements when the clock restarts
     assert len(filt) == 2 and pipe.reinitialisations == 1
@@ -207,8 +228,10 @@ def test_frozen_sensor_is_masked_and_reported_then_recovers():
     masks = np.array([m for _, _, m, _ in filt[0].calls])
     # frozen_s = 1.0: masked from 1 s after the value froze until it moves again
     assert masks[60:80, 0].all() and not masks[81:140, 0].any() and masks[141:, 0].all()
-    assert ("warning", "gnss_alt frozen at 501.234 for 1.00 s") in ev.events
-    assert any("no longer frozen" in t for _, t in ev.events)
+    (frozen,) = ev.of(SensorFrozen)
+    assert frozen.name == "gnss_alt" and frozen.value == pytest.approx(501.234)
+    assert frozen.held_s == pytest.approx(1.0) and frozen.level == "warning"
+    assert ev.of(SensorUnfrozen) == [SensorUnfrozen("gnss_alt")]
     assert any("gnss_alt frozen" in t for t in texts(msgs))
 
 
@@ -271,7 +294,7 @@ def test_second_system_on_the_link_is_ignored_counted_and_reported():
     assert pipe.frames >= 99
     ys = np.array([y[0] for _, y, m, _ in filt[0].calls if m[0]])
     assert np.abs(ys - 500.0).max() < 30.0        # never the intruder's +100 m
-    assert any("ignoring system 2" in t for _, t in ev.events)
+    assert ev.of(OtherSystemIgnored) == [OtherSystemIgnored(system=2, following=1)]
     assert sum("other system" in t for t in texts(msgs)) == 1
 
 

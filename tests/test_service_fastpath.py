@@ -11,9 +11,9 @@ import numpy as np
 from support import CH4, ch4_service  # noqa: F401
 
 from fdir_service.estimation.base import StepOutput
-from fdir_service.ingest import AssembledFrame
 from fdir_service.mavlink import dialect, new_mavlink
-from fdir_service.publish import Publisher
+from fdir_service.runtime.frames import AssembledFrame
+from fdir_service.runtime.publishing import Publisher
 from sim_bridge.scenario import load_scenario
 
 
@@ -49,11 +49,11 @@ def test_publisher_fast_framing_equals_pymavlink_pack():
                                        synthetic=i % 11 == 0, stale=("baro_alt",) if i % 4 == 0 else ())
                 pub.frame_seq += 1
                 seq_before = mav.seq
-                got = pub._estimate_bytes(frame, out, gap=False)
+                got = pub.estimate_bytes(frame, out, gap=False)
                 assert mav.seq == (seq_before + 1) % 256   # every frame out takes the next sequence number
                 ref.seq = seq_before
                 ref.signing.timestamp = mav.signing.timestamp - (1 if key else 0)
-                want = bytes(pub._estimate_message(frame, out, False).pack(ref))
+                want = bytes(pub.estimate_message(frame, out, False).pack(ref))
                 assert got == want, i
                 v = float(out.fault_estimate[0])
                 ref.seq = mav.seq
@@ -87,9 +87,9 @@ def test_deferred_recorder_writes_the_same_file(tmp_path):
         for k, d in enumerate(data):
             pipe.feed(d, 10**9 + k * 50_000_000)
             if deferred:
-                assert rec._queue                   # nothing encoded yet: only references queued
+                assert rec.queued                   # nothing encoded yet: only references queued
                 pipe.drain_observers()
-                assert not rec._queue
+                assert rec.queued == 0
         pipe.close(10**9 + len(data) * 50_000_000)
         pipe.drain_observers()
         rec.close()

@@ -9,8 +9,9 @@ import pytest
 from support import CH4, ch4_service  # noqa: F401
 
 from fdir_service.atmosphere import pressure_from_altitude
-from fdir_service.ingest import FrameAssembler
 from fdir_service.mavlink import dialect
+from fdir_service.runtime.events import SensorRecovered, SensorStale
+from fdir_service.runtime.frames import FrameAssembler
 
 CFG = ch4_service()
 TRIM_U = np.array([-0.083, 0.532])
@@ -78,10 +79,12 @@ def test_gap_frames_are_predicted_through_and_stale_sensors_reported():
     # baro silent for > 1 s: reported stale once, then recovered
     for k in range(7, 30):
         feed(asm, [m for m in sensors(50 * k) if m.get_type() != "SCALED_PRESSURE"])
-    assert ("warning", "baro_alt stale: no SCALED_PRESSURE for 1.05 s") in asm.events
+    (stale,) = [e for e in asm.events if isinstance(e, SensorStale)]
+    assert (stale.name, stale.message) == ("baro_alt", "SCALED_PRESSURE")
+    assert stale.silent_s == pytest.approx(1.05)
     feed(asm, sensors(1500))
     feed(asm, sensors(1550))
-    assert asm.events[-1] == ("info", "baro_alt recovered")
+    assert asm.events[-1] == SensorRecovered("baro_alt")
 
 
 def test_bad_values_are_dropped_and_counted_never_nan_into_y():

@@ -17,7 +17,7 @@ from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
@@ -54,40 +54,61 @@ def linear_scan(path: str | os.PathLike[str]) -> LinearScan:
             raise McapError(f"{path}: not an MCAP file (bad magic)")
         while True:
             start = f.tell()
-            head = f.read(_RECORD_HEADER.size)
-            if len(head) < _RECORD_HEADER.size:
-                out.truncated_at = start  # ended without DataEnd: truncated (maybe at a boundary)
-                break
-            opcode, length = _RECORD_HEADER.unpack(head)
-            if start + _RECORD_HEADER.size + length > size:
-                out.truncated_at = start
-                break
-            body = f.read(length)
             try:
-                reader = StreamReader(io.BytesIO(head + body), skip_magic=True, emit_chunks=True)
-                record = next(reader.records)
-                records = breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk) else [record]
-            except StopIteration:
-                continue  # unknown record type: skipped by the spec
-            except Exception:  # noqa: BLE001 (any decoding failure means a corrupt tail)
+                record, records = _next_record(f, size)
+            except _Truncated:
                 out.truncated_at = start
                 break
-            for r in records:
-                if isinstance(r, Schema):
-                    out.schemas[r.id] = r
-                elif isinstance(r, Channel):
-                    out.channels[r.id] = r
-                elif isinstance(r, Message):
-                    if r.channel_id in out.channels:
-                        out.messages.append(r)
-                elif isinstance(r, Metadata):
-                    out.metadata.append(r)
+            if record is None:
+                continue  # unknown record type: skipped by the spec
+            _collect(out, records)
             if isinstance(record, (DataEnd, Footer)):
                 out.finalised = True
                 break
         if out.truncated_at is not None:
             out.dropped_bytes = size - out.truncated_at
     return out
+
+
+class _Truncated(Exception):
+    """The record at the file position is incomplete or corrupt (or the file ended without DataEnd)."""
+
+
+def _next_record(f: BinaryIO, size: int) -> tuple[Any, list[Any]]:
+    """The next record at f's position (size: the file's length in bytes) and the records it holds
+    (a chunk's messages, CRC-checked; else itself); (None, []) for an unknown record type.
+    Raises _Truncated."""
+    start = f.tell()
+    head = f.read(_RECORD_HEADER.size)
+    if len(head) < _RECORD_HEADER.size:
+        raise _Truncated   # ended without DataEnd: truncated (maybe at a record boundary)
+    _opcode, length = _RECORD_HEADER.unpack(head)
+    if start + _RECORD_HEADER.size + length > size:
+        raise _Truncated
+    body = f.read(length)
+    try:
+        reader = StreamReader(io.BytesIO(head + body), skip_magic=True, emit_chunks=True)
+        record = next(reader.records)
+        records = breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk) else [record]
+    except StopIteration:
+        return None, []
+    except Exception as exc:  # noqa: BLE001 (any decoding failure means a corrupt tail)
+        raise _Truncated from exc
+    return record, records
+
+
+def _collect(out: LinearScan, records: Iterable[Any]) -> None:
+    """File schemas, channels, messages (of known channels) and metadata into the scan."""
+    for r in records:
+        if isinstance(r, Schema):
+            out.schemas[r.id] = r
+        elif isinstance(r, Channel):
+            out.channels[r.id] = r
+        elif isinstance(r, Message):
+            if r.channel_id in out.channels:
+                out.messages.append(r)
+        elif isinstance(r, Metadata):
+            out.metadata.append(r)
 
 
 class McapLog:

@@ -103,6 +103,11 @@ class Recorder:
             with self._lock:
                 self._drain_locked()
 
+    @property
+    def queued(self) -> int:
+        """Observer calls queued in deferred mode and not written yet (0 after `drain()`)."""
+        return len(self._queue)
+
     def _drain_locked(self) -> None:
         q, self._queue = self._queue, []
         for fn, args in q:

@@ -1,0 +1,310 @@
+"""What the runtime says, as typed objects: consumers match on the class and its fields.
+
+Every event has a `level` ("info" | "warning" | "error") and a `text`: the wording of the log line
+(`/fdir/log` in the recording, `PipelineObserver.on_event(level, text, t_ns)`). The text is made
+from the fields, so nothing downstream needs to parse it; an observer that defines
+`on_runtime_event(event, t_ns)` also receives the object itself.
+
+Events whose `sensor_notice` is True (stale, recovered, frozen, unfrozen sensors and time jumps)
+also go out as STATUSTEXT "FDIR <text>" when `publish.stale_statustext` is on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from typing import ClassVar
+
+
+class Event:
+    """Base of every runtime event. Subclasses are frozen dataclasses; `text` renders the log line."""
+
+    level: ClassVar[str] = "info"
+    sensor_notice: ClassVar[bool] = False
+
+    @property
+    def text(self) -> str:  # pragma: no cover - every subclass defines it
+        raise NotImplementedError
+
+
+# ---------------------------------------------------------------------------- screening
+
+OPERATOR_REASONS = frozenset({"unsigned", "bad signature", "other system", "command ignored", "mavlink1",
+                              "time jump", "bad crc", "malformed", "out of range", "frozen",
+                              "no timestamp"})
+"""Rejection reasons an operator should know about (reported by rate-limited STATUSTEXT); the rest
+(late, surplus, duplicate, unknown message id, not matching where) are normal on a radio link and
+only counted and logged."""
+
+
+@dataclass(frozen=True)
+class Rejected(Event):
+    """A kind of dropped input: `reason` ("out of range", "command ignored", "duplicate", ...) and
+    the `field` it concerns (a row or input name, a message type, a command; "" for none). As an
+    event: the first time this kind was dropped ("rejected input: first <key>")."""
+
+    reason: str
+    field: str = ""
+    level: ClassVar[str] = "warning"
+
+    @property
+    def key(self) -> str:
+        """The counter key: "gnss_alt out of range", "command ignored (COMMAND_LONG)", "duplicate"."""
+        if not self.field:
+            return self.reason
+        if self.reason == "command ignored":
+            return f"{self.reason} ({self.field})"
+        return f"{self.field} {self.reason}"
+
+    @property
+    def operator(self) -> bool:
+        """Whether an operator should be told (STATUSTEXT), see OPERATOR_REASONS."""
+        return self.reason in OPERATOR_REASONS
+
+    @property
+    def text(self) -> str:
+        return f"rejected input: first {self.key}"
+
+
+@dataclass(frozen=True)
+class RejectionSummary(Event):
+    """Dropped input so far: `total` messages or values, `counts` ((key, count), ...) sorted by key."""
+
+    total: int
+    counts: tuple[tuple[str, int], ...]
+    level: ClassVar[str] = "warning"
+
+    @property
+    def text(self) -> str:
+        detail = ", ".join(f"{k} {v}" for k, v in self.counts)
+        return f"rejected input ({self.total} so far): {detail}"
+
+
+@dataclass(frozen=True)
+class OtherSystemIgnored(Event):
+    """Messages from MAVLink system `system` are ignored: the service follows system `following`."""
+
+    system: int
+    following: int
+    level: ClassVar[str] = "warning"
+
+    @property
+    def text(self) -> str:
+        return f"ignoring system {self.system} on the link (following system {self.following})"
+
+
+# ---------------------------------------------------------------------------- frames
+
+@dataclass(frozen=True)
+class SensorStale(Event):
+    """Row `name` silent: no `message` for `silent_s` seconds of message time."""
+
+    name: str
+    message: str
+    silent_s: float
+    level: ClassVar[str] = "warning"
+    sensor_notice: ClassVar[bool] = True
+
+    @property
+    def text(self) -> str:
+        return f"{self.name} stale: no {self.message} for {self.silent_s:.2f} s"
+
+
+@dataclass(frozen=True)
+class SensorRecovered(Event):
+    """Row `name`, reported stale, is measured again."""
+
+    name: str
+    sensor_notice: ClassVar[bool] = True
+
+    @property
+    def text(self) -> str:
+        return f"{self.name} recovered"
+
+
+@dataclass(frozen=True)
+class SensorFrozen(Event):
+    """Row `name` has held the bit-identical `value` (SI) for `held_s` seconds of message time."""
+
+    name: str
+    value: float
+    held_s: float
+    level: ClassVar[str] = "warning"
+    sensor_notice: ClassVar[bool] = True
+
+    @property
+    def text(self) -> str:
+        return f"{self.name} frozen at {self.value:.6g} for {self.held_s:.2f} s"
+
+
+@dataclass(frozen=True)
+class SensorUnfrozen(Event):
+    """Row `name`, reported frozen, changes value again."""
+
+    name: str
+    sensor_notice: ClassVar[bool] = True
+
+    @property
+    def text(self) -> str:
+        return f"{self.name} no longer frozen"
+
+
+@dataclass(frozen=True)
+class TimeJumped(Event):
+    """The autopilot's clock jumped (confirmed) from `from_s` to `to_s` (s): the frame clock restarts."""
+
+    from_s: float
+    to_s: float
+    backward: bool
+    level: ClassVar[str] = "warning"
+    sensor_notice: ClassVar[bool] = True
+
+    @property
+    def text(self) -> str:
+        direction = "back" if self.backward else "forward"
+        return (f"autopilot time jumped {direction} from {self.from_s:.2f} s to {self.to_s:.2f} s: "
+                "restarting the frame clock")
+
+
+@dataclass(frozen=True)
+class FramesMissing(Event):
+    """`missing_s` seconds of frames never arrived, more than max_gap_s: not predicted through."""
+
+    missing_s: float
+    level: ClassVar[str] = "warning"
+
+    @property
+    def text(self) -> str:
+        return f"{self.missing_s:.2f} s of frames missing (more than max_gap_s): not predicted through"
+
+
+# ---------------------------------------------------------------------------- health
+
+class Cause(Enum):
+    """Why the estimator was re-initialised."""
+
+    INPUT_RESUMED = "input resumed"            # frame clock restarted, or a gap > max_gap_s ended
+    NON_FINITE = "non-finite estimate"
+    STATE_JUMP = "state jump"                  # a non-physical jump of the airframe estimate
+    FILTER_RESET = "filter reset"              # the filter's own re-initialisation counter moved
+    DEGENERATE = "degenerate"                  # N_eff below min_n_eff for degenerate_frames frames
+    FILTER_RAISED = "filter raised"            # filter.step raised a numerical error
+
+
+@dataclass(frozen=True)
+class HealthProblem:
+    """A reason to re-initialise the estimator: its `cause` and the operator's wording `text`."""
+
+    cause: Cause
+    text: str
+
+    @property
+    def acute(self) -> bool:
+        """Acted on at once, even within reinit_holdoff_s: the estimate must not be published."""
+        return self.cause in (Cause.NON_FINITE, Cause.STATE_JUMP, Cause.FILTER_RAISED)
+
+
+@dataclass(frozen=True)
+class Reinitialised(Event):
+    """The filter was rebuilt at frame time `time_s` (s) because of `cause`, around `state`
+    (p_d m, u m/s, w m/s, theta rad, q rad/s) from the frame's measurements; `masked`: rows that
+    disagreed with it, masked for this frame."""
+
+    time_s: float
+    cause: HealthProblem
+    state: tuple[float, float, float, float, float]
+    masked: tuple[str, ...] = ()
+
+    @property
+    def level(self) -> str:  # type: ignore[override]
+        return "error" if self.cause.cause is Cause.NON_FINITE else "warning"
+
+    @property
+    def text(self) -> str:
+        p_d, u, w, theta, q = self.state
+        masked = f"; rows masked this frame: {', '.join(self.masked)}" if self.masked else ""
+        return (f"estimator re-initialised at t={self.time_s:.2f} s ({self.cause.text}) from the "
+                f"measurements: p_d={p_d:.1f} u={u:.2f} w={w:.2f} theta={theta:.4f} q={q:.4f}{masked}")
+
+
+@dataclass(frozen=True)
+class FilterStepFailed(Event):
+    """filter.step raised `error` (the exception's type name) with `message` at frame time `time_s`."""
+
+    time_s: float
+    error: str
+    message: str
+    level: ClassVar[str] = "error"
+
+    @property
+    def text(self) -> str:
+        return f"filter step failed at t={self.time_s:.2f} s: {self.error}: {self.message}"
+
+
+@dataclass(frozen=True)
+class LinkLost(Event):
+    """No input bytes from the autopilot for `silent_s` seconds of wall time."""
+
+    silent_s: float
+    level: ClassVar[str] = "error"
+
+    @property
+    def text(self) -> str:
+        return f"link lost: no input from the autopilot for {self.silent_s:.1f} s"
+
+
+@dataclass(frozen=True)
+class LinkRegained(Event):
+    """Input from the autopilot again after `silent_s` seconds of wall time without."""
+
+    silent_s: float
+
+    @property
+    def text(self) -> str:
+        return f"link restored after {self.silent_s:.1f} s without input"
+
+
+# ---------------------------------------------------------------------------- publishing
+
+@dataclass(frozen=True)
+class FaultDeclared(Event):
+    """Fault `fault_id` declared at frame time `time_s` (s): P(fault) `p`, `estimate` in SI;
+    `statustext`: the STATUSTEXT sent ("FDIR gnss fault +50.1 m p=0.98")."""
+
+    fault_id: str
+    time_s: float
+    p: float
+    estimate: float
+    statustext: str
+    level: ClassVar[str] = "warning"
+
+    @property
+    def text(self) -> str:
+        return f"{self.statustext} (t={self.time_s:.2f} s)"
+
+
+@dataclass(frozen=True)
+class FaultCleared(Event):
+    """Fault `fault_id` cleared at frame time `time_s` (s) with P(fault) `p`; `statustext` as sent."""
+
+    fault_id: str
+    time_s: float
+    p: float
+    statustext: str
+
+    @property
+    def text(self) -> str:
+        return f"{self.statustext} (t={self.time_s:.2f} s)"
+
+
+@dataclass(frozen=True)
+class PipelineClosed(Event):
+    """The pipeline stepped `frames` frames and closed; `counts`: dropped input ((key, n), ...)."""
+
+    frames: int
+    counts: tuple[tuple[str, int], ...]
+
+    @property
+    def text(self) -> str:
+        summary = ", ".join(f"{k} {v}" for k, v in self.counts) or "none"
+        return f"pipeline closed after {self.frames} frames; rejected input: {summary}"
