@@ -304,46 +304,61 @@ MUTATIONS = ("flip", "truncate", "random", "duplicate", "swap", "drop", "v1", "n
              "huge", "splice", "keep")
 
 
-def mutate(packets: list[bytes], i: int, kind: str, rng: np.random.Generator) -> list[bytes]:
+def _flip(packets, i, rng):
+    b = bytearray(packets[i])
+    for _ in range(1 + int(rng.integers(3))):
+        b[int(rng.integers(len(b)))] ^= 1 << int(rng.integers(8))
+    return [bytes(b)]
+
+
+def _splice(packets, i, rng):
+    p, q = packets[i], packets[int(rng.integers(len(packets)))]
+    return [p[: len(p) // 2] + q[len(q) // 2:]]
+
+
+def _bad_time(packets, i, rng):
     p = packets[i]
-    if kind == "flip":
-        b = bytearray(p)
-        for _ in range(1 + int(rng.integers(3))):
-            b[int(rng.integers(len(b)))] ^= 1 << int(rng.integers(8))
-        return [bytes(b)]
-    if kind == "truncate":
-        return [p[: int(rng.integers(1, len(p)))]]
-    if kind == "random":
-        return [rng.bytes(int(rng.integers(1, 300)))]
-    if kind == "duplicate":
-        return [p, p]
-    if kind == "swap":
-        return [packets[i + 1], p] if i + 1 < len(packets) else [p]
-    if kind == "drop":
-        return []
-    if kind == "v1":
-        return [v1_frame(p)]
-    if kind == "splice":
-        q = packets[int(rng.integers(len(packets)))]
-        return [p[: len(p) // 2] + q[len(q) // 2:]]
-    if kind in ("nan", "inf", "huge", "time"):
+    m = new_mavlink(255, 0).parse_buffer(p)[0]
+    field = next((f for f in ("time_usec", "time_boot_ms") if hasattr(m, f)), None)
+    if field is None:
+        return [p]
+    top = 2**63 if m.fieldtypes[m.fieldnames.index(field)] == "uint64_t" else 2**32
+    return [reencode(p, **{field: int(rng.integers(0, top, dtype=np.uint64))})]
+
+
+def _bad_float(kind):
+    def mutate_float(packets, i, rng):
+        p = packets[i]
         m = new_mavlink(255, 0).parse_buffer(p)[0]
         floats = [f for f, t in zip(m.fieldnames, m.fieldtypes, strict=True)
                   if t in ("float", "double") and not isinstance(getattr(m, f), list)]
-        if kind == "time":
-            field = "time_usec" if hasattr(m, "time_usec") else ("time_boot_ms" if hasattr(m, "time_boot_ms")
-                                                                  else None)
-            if field is None:
-                return [p]
-            ftype = m.fieldtypes[m.fieldnames.index(field)]
-            top = 2**63 if ftype == "uint64_t" else 2**32
-            return [reencode(p, **{field: int(rng.integers(0, top, dtype=np.uint64))})]
         if not floats:
             return [p]
         value = {"nan": math.nan, "inf": -math.inf if rng.random() < 0.5 else math.inf,
                  "huge": float(rng.choice([1e30, -1e30, 3e38]))}[kind]
         return [reencode(p, **{str(rng.choice(floats)): value})]
-    return [p]
+    return mutate_float
+
+
+MUTATORS = {
+    "flip": _flip,
+    "truncate": lambda packets, i, rng: [packets[i][: int(rng.integers(1, len(packets[i])))]],
+    "random": lambda packets, i, rng: [rng.bytes(int(rng.integers(1, 300)))],
+    "duplicate": lambda packets, i, rng: [packets[i], packets[i]],
+    "swap": lambda packets, i, rng: [packets[i + 1], packets[i]] if i + 1 < len(packets) else [packets[i]],
+    "drop": lambda packets, i, rng: [],
+    "v1": lambda packets, i, rng: [v1_frame(packets[i])],
+    "splice": _splice,
+    "time": _bad_time,
+    "nan": _bad_float("nan"),
+    "inf": _bad_float("inf"),
+    "huge": _bad_float("huge"),
+}
+
+
+def mutate(packets: list[bytes], i: int, kind: str, rng: np.random.Generator) -> list[bytes]:
+    """Packet i of the stream mutated by `kind` (MUTATIONS), as the packets to send in its place."""
+    return MUTATORS.get(kind, lambda packets, i, rng: [packets[i]])(packets, i, rng)
 
 
 def run_mutated(pipe: Pipeline, rng: np.random.Generator, n_packets: int,
