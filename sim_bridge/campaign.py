@@ -47,11 +47,12 @@ def filter_rng(seed: int, run: int, name: str) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(run, 1, zlib.crc32(name.encode()))))
 
 
-def build(name: str, scenario: Scenario, rng: np.random.Generator, particles: int | None = None):
+def build(name: str, scenario: Scenario, rng: np.random.Generator, particles: int | None = None,
+          x0: np.ndarray | None = None):
     """Any filter of the project by name (fdir_service.estimation.recipes) for the experiment's
-    estimator."""
+    estimator; x0 (5,): its initial airframe state (default: the estimator's trim)."""
     from fdir_service.estimation.factory import build_filter
-    return build_filter(name, scenario.estimator, rng, particles=particles)
+    return build_filter(name, scenario.estimator, rng, particles=particles, x0=x0)
 
 
 def simulate(scenario: Scenario, seed: int, nav=None):
@@ -106,10 +107,13 @@ class RunResult:
 
 class _TimedNav:
     """Wraps filter.step: maps the world's sensor rows onto the estimator's (`rows` (m_est,), -1:
-    never arrives), times the step and snapshots the top particles at every whole second."""
+    never arrives), times the step and snapshots the top particles at every whole second.
+    start(y, mask) -> filter: with operating_point.init = "first_frame", the filter the first frame
+    starts (on its measurements), as the service does."""
 
-    def __init__(self, filt, dt: float, rows: np.ndarray) -> None:
+    def __init__(self, filt, dt: float, rows: np.ndarray, start=None) -> None:
         self.filt = filt
+        self.start = start
         self.rows = None if np.array_equal(rows, np.arange(rows.size)) else rows
         self.every = max(1, int(round(1.0 / dt)))
         self.k = 0
@@ -119,6 +123,8 @@ class _TimedNav:
     def __call__(self, t, y, mask, u):
         if self.rows is not None:
             y, mask = y[self.rows], mask[self.rows] & (self.rows >= 0)
+        if self.k == 0 and self.start is not None:
+            self.filt = self.start(y, mask)
         t0 = time.perf_counter()
         out = self.filt.step(t, y, mask, u)
         self.seconds += time.perf_counter() - t0
@@ -159,16 +165,32 @@ def run_job(job: Job) -> RunResult | RunFailure:
                           f"{type(exc).__name__}: {exc} ({tb.filename.split('/')[-1]}:{tb.lineno})")
 
 
+def _first_frame_start(sc: Scenario, new_filter):
+    """For operating_point.init = "first_frame": y, mask -> the filter started on the state made
+    from the first frame (`measurement.measured_state` about the trim); else None."""
+    if sc.estimator.operating_point.init != "first_frame":
+        return None
+    from fdir_service.estimation.factory import trim_state
+    from fdir_service.estimation.measurement import measured_state
+
+    trim = trim_state(sc.estimator)
+    return lambda y, mask: new_filter(measured_state(sc.estimator.measurements, y, mask, trim))
+
+
 def _run_job(job: Job) -> RunResult:
     t_start = time.perf_counter()
     sc = job.scenario
     builder = job.builder or build
     simulator = job.simulator or simulate
     seed = sim_seed(job.seed, job.run)
-    filt = builder(job.filter, sc, filter_rng(job.seed, job.run, job.filter), job.particles)
-    if hasattr(filt, "output_covariance"):   # a RunResult keeps no covariance: skip computing it
-        filt.output_covariance = False
-    nav = _TimedNav(filt, sc.dt_s, sc.estimator_rows())
+    def new_filter(x0=None):
+        kw = {} if x0 is None else {"x0": x0}
+        filt = builder(job.filter, sc, filter_rng(job.seed, job.run, job.filter), job.particles, **kw)
+        if hasattr(filt, "output_covariance"):   # a RunResult keeps no covariance: skip computing it
+            filt.output_covariance = False
+        return filt
+
+    nav = _TimedNav(new_filter(), sc.dt_s, sc.estimator_rows(), _first_frame_start(sc, new_filter))
     traj = simulator(sc, seed, nav=nav)
     outs = traj.outputs
     n = len(outs[0].x_mean)

@@ -227,3 +227,18 @@ def test_an_estimator_watching_faults_the_world_never_injects_is_scored_per_esti
     assert fd["detection"]["gnss"]["delay_s"] < 1.0                        # the 50 m step is found
     assert fd["rmse"]["f_q"]["mean"] < 0.5                                 # deg/s, about a zero truth
     assert "| f_theta | deg |" in (tmp_path / "report.md").read_text()
+
+
+@pytest.mark.parametrize("init,lo,hi", [("first_frame", 0.0, 10.0), ("trim", 150.0, 250.0)])
+def test_campaign_starts_the_filter_where_the_estimator_says(ch4, init, lo, hi):
+    """An estimator trimmed at 300 m over a world flying at 500 m: its first altitude estimate is the
+    trim (200 m off) with init "trim", the first frame's measurement with "first_frame"."""
+    import dataclasses
+
+    from fdir_service.estimator_config import merge_documents, parse_estimator
+
+    doc = merge_documents(ch4.estimator.doc, {"operating_point": {"altitude_m": 300.0, "init": init}})
+    sc = dataclasses.replace(ch4, estimator=parse_estimator(doc, "<test>"), filters=("JMRPF",),
+                             proposed="JMRPF")
+    fr = run_campaign(sc, 1, particles=200, workers=1, progress=False, filters=["JMRPF"]).filters["JMRPF"]
+    assert lo <= abs(fr.z_hat[0, 0, 0] - fr.z_true[0, 0, 0]) <= hi

@@ -155,3 +155,28 @@ def test_replay_of_recorded_bytes_reproduces_every_estimate_bit_for_bit():
     # and the same bytes go out (the chunking follows the input's)
     out_a = b"".join(d for x, d in a.raw if x == "out")
     assert len(out_a) > 10_000 and out_a == b"".join(d for x, d in b.raw if x == "out")
+
+
+def _estimates_with_init(init: str, seconds: float = 3.0):
+    """The altitude estimates (m) of an RJMRPF service whose estimator trims at 300 m (the aircraft
+    flies at 500 m), starting its cloud at that trim or on the first frame."""
+    from fdir_service.estimator_config import merge_documents
+
+    doc = merge_documents(CH4.estimator.doc, {"operating_point": {"altitude_m": 300.0, "init": init}})
+    cfg = ServiceConfig.from_toml_text(default_config_path().read_text(), estimator_doc=doc)
+    pipe = Pipeline(cfg, filter_name="RJMRPF", particles=300, seed=3)
+    heights = []
+    for i, (_, sens, acts) in enumerate(STREAM[: int(seconds / CH4.dt_s)]):
+        for b in sens + acts:
+            for m in new_mavlink(255, 0).parse_buffer(b"".join(pipe.feed(b, i))) or []:
+                if m.get_type() == "FDIR_ESTIMATE":
+                    heights.append(-m.state[0])
+    return pipe, np.array(heights)
+
+
+def test_first_frame_init_starts_the_cloud_on_the_measurements_not_the_trim():
+    pipe, h = _estimates_with_init("first_frame")
+    assert abs(h[0] - 500.0) < 10.0 and np.all(np.abs(h - 500.0) < 10.0)
+    assert pipe.reinitialisations == 0
+    _, h_trim = _estimates_with_init("trim")
+    assert abs(h_trim[0] - 500.0) > 50.0          # the trim cloud starts 200 m low

@@ -66,3 +66,23 @@ class MeasurementModel:
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Predicted measurements (m, N) of a state-major cloud X (n, N); or (m,) of x (n,)."""
         return self.H @ X
+
+
+def measured_state(names: tuple[str, ...] | list[str], y: np.ndarray, mask: np.ndarray,
+                   ref: np.ndarray) -> np.ndarray:
+    """An airframe state (5,) made from one frame: each state the value of a row (names (m,), y (m,)
+    SI where mask (m,)) that measures it (altitudes: -p_d), the one nearest ref (5,) where several
+    rows measure it; states no valid row measures keep ref."""
+    x0 = np.asarray(ref, dtype=float).copy()
+    best: dict[int, float] = {}
+    for j, name in enumerate(names):
+        row = MEASURED_STATE.get(name)
+        if row is None or not mask[j] or not np.isfinite(y[j]):
+            continue
+        col, coef = row
+        v = y[j] / coef
+        if col not in best or abs(v - ref[col]) < abs(best[col] - ref[col]):
+            best[col] = v
+    for col, v in best.items():
+        x0[col] = v
+    return x0

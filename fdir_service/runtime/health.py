@@ -17,14 +17,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
+from fdir_service.estimation.measurement import MEASURED_STATE, measured_state
 from fdir_service.mavlink import dialect
 from fdir_service.runtime.events import Cause, HealthProblem
-
-try:  # the measurement -> state map of the filters' measurement model (read only)
-    from fdir_service.estimation.measurement import MEASURED_STATE
-except ImportError:  # pragma: no cover
-    MEASURED_STATE = {"gnss_alt": (0, -1.0), "baro_alt": (0, -1.0), "u": (1, 1.0), "w": (2, 1.0),
-                      "theta": (3, 1.0), "q": (4, 1.0)}
 
 if TYPE_CHECKING:
     from fdir_service.estimator_config import EstimatorConfig
@@ -117,6 +112,12 @@ class EstimatorHealth:
         return problem.acute or not self.in_holdoff(time_us)
 
     # ------------------------------------------------------------------ bookkeeping
+    def started(self, filt) -> None:
+        """A filter `filt` started on the first frame (operating_point.init = "first_frame"): not a
+        re-initialisation (no holdoff), only its counters are taken."""
+        self.filter_reinits = int(getattr(filt, "reinitialisations", 0))
+        self.low_neff = 0
+
     def reinitialised(self, filt, time_us: int) -> None:
         """A new filter `filt` was built at frame time time_us (us)."""
         self.filter_reinits = int(getattr(filt, "reinitialisations", 0))
@@ -152,24 +153,10 @@ class EstimatorHealth:
         from fdir_service.estimation.factory import trim_state
 
         ref = self.last_good_state if self.last_good_state is not None else trim_state(self.estimator)
-        x0 = ref.astype(float).copy()
-        for col, v in self._nearest_measured(y, mask, ref).items():
-            x0[col] = v
+        x0 = measured_state(self.estimator.measurements, y, mask, ref)
         keep = mask.copy()
         for j, row in enumerate(self.rows):
             if row is not None and keep[j]:
                 col, coef = row
                 keep[j] = abs(y[j] / coef - x0[col]) <= self.config.reinit_gate_sigmas * self.sigma[j]
         return x0, keep
-
-    def _nearest_measured(self, y: np.ndarray, mask: np.ndarray, ref: np.ndarray) -> dict[int, float]:
-        """State column -> the measured value of it nearest ref[column], over the valid rows."""
-        best: dict[int, float] = {}
-        for j, row in enumerate(self.rows):
-            if row is None or not mask[j] or not np.isfinite(y[j]):
-                continue
-            col, coef = row
-            v = y[j] / coef
-            if col not in best or abs(v - ref[col]) < abs(best[col] - ref[col]):
-                best[col] = v
-        return best

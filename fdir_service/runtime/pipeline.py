@@ -332,10 +332,20 @@ class Pipeline:
 
     def _resume(self, frame: AssembledFrame, msgs: list[bytes], t_ns: int) -> np.ndarray:
         """The rows (m,) to step: after the frame clock restarted or a long gap, the filter is
-        rebuilt from this frame's measurements and the rows that disagree are masked."""
+        rebuilt from this frame's measurements and the rows that disagree are masked; on the first
+        frame of an estimator with operating_point.init = "first_frame" it starts there."""
         if frame.restart and self.frames > 0:
             return self._reinitialise(frame, INPUT_RESUMED, msgs, t_ns)
+        if self.frames == 0 and self.estimator.operating_point.init == "first_frame":
+            self._start_on(frame)
         return frame.mask
+
+    def _start_on(self, frame: AssembledFrame) -> None:
+        """operating_point.init = "first_frame": the cloud starts on the state made from the first
+        frame's measurements (`state_from_measurements`) instead of the trim state."""
+        x0, _ = self.monitor.state_from_measurements(frame.y, frame.mask)
+        self.filter = self._new_filter(x0)
+        self.monitor.started(self.filter)
 
     def _checked_step(self, frame: AssembledFrame, mask: np.ndarray, msgs: list[bytes], t_ns: int
                       ) -> StepOutput | None:
