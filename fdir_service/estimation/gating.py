@@ -82,23 +82,25 @@ class GatedKF:
         self._rows_matrix = np.array(self._rows, dtype=float).reshape(len(self._rows), m)
         self._nan_f = np.full(len(self.fault_ids), np.nan)
         self._gate2 = float(self.gate) ** 2
-        # The project's KF (predict / update / output, state in x and P, update rebinding them):
+        # Fast paths (public so a test can compare them with the generic path). The project's KF
+        # (predict / update / output, state in x and P, update rebinding them):
         # predict once, update, and on a rejection restore (x, P) and redo only the update.
         self._split = all(hasattr(kf, a) for a in ("predict", "update", "output"))
-        self._xp = self._split and all(hasattr(kf, a) for a in ("x", "P", "n_eff"))
+        self.restores_state = self._split and all(hasattr(kf, a) for a in ("x", "P", "n_eff"))
         # ... and with a linear measurement model (meas.H, meas.R, as kalman.KalmanFilter): the test
         # ratios come from the prediction alone, so they are computed first and the update runs once.
         meas = getattr(kf, "meas", None)
-        self._pre = self._xp and hasattr(meas, "H") and hasattr(meas, "R")
-        if self._pre:
+        self.gates_from_prediction = self.restores_state and hasattr(meas, "H") and hasattr(meas, "R")
+        if self.gates_from_prediction:
             self._H = np.asarray(meas.H, float)
             self._r_diag = np.diagonal(np.asarray(meas.R, float)).copy()
 
     def step(self, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray) -> StepOutput:
         mask = np.asarray(mask, bool)
         kf = self.kf
-        split, xp = self._split, self._xp
-        if self._pre:   # nu = y - H x_pred, S_ii = (H P_pred H^T)_ii + R_ii: gate, then one update
+        split, xp = self._split, self.restores_state
+        if self.gates_from_prediction:
+            # nu = y - H x_pred, S_ii = (H P_pred H^T)_ii + R_ii: gate, then one update
             kf.predict(u)
             H = self._H
             nu = np.asarray(y, float) - H @ kf.x

@@ -75,7 +75,7 @@ def _check(mu0, s0, mu1, s1) -> np.ndarray:
     return arr
 
 
-def _hypotheses(mu0, s0, mu1, s1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def hypotheses(mu0, s0, mu1, s1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-sample CGF parameters (g, h^2, q) of X_k, each (2, ..., n): index 0 under H0, 1 under H1.
 
     With y' = (y - mu0)/s0 ~ N(0, 1) under H0 and N(d, r^2) under H1 (d = (mu1 - mu0)/s0,
@@ -99,7 +99,7 @@ def _hypotheses(mu0, s0, mu1, s1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return g, h2, q
 
 
-def _kbar12(T: np.ndarray, g, h2, q) -> tuple[np.ndarray, np.ndarray]:
+def kbar12(T: np.ndarray, g, h2, q) -> tuple[np.ndarray, np.ndarray]:
     """Kbar'(T) and Kbar''(T) (mean over the trailing sample axis) of eq. 6.49 / 6.55.
 
     K_k(t) = t g + t^2 h^2 / (2 D) - log(D)/2, D = 1 - 2 q t (SPEC section 6), so
@@ -113,7 +113,7 @@ def _kbar12(T: np.ndarray, g, h2, q) -> tuple[np.ndarray, np.ndarray]:
     return k1, k2
 
 
-def _domain(q) -> tuple[np.ndarray, np.ndarray]:
+def domain(q) -> tuple[np.ndarray, np.ndarray]:
     """Open interval (t_lo, t_hi) where 1 - 2 q_k t > 0 for every k (eq. 6.50, 6.56)."""
     with np.errstate(divide="ignore"):
         inv = 0.5 / q
@@ -122,7 +122,7 @@ def _domain(q) -> tuple[np.ndarray, np.ndarray]:
     return t_lo, t_hi
 
 
-def _support(g, h2, q) -> tuple[np.ndarray, np.ndarray]:
+def support(g, h2, q) -> tuple[np.ndarray, np.ndarray]:
     """Essential infimum and supremum of Xbar (finite only when every a_k has one sign)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         extra = h2 / (4.0 * np.abs(q))
@@ -132,28 +132,28 @@ def _support(g, h2, q) -> tuple[np.ndarray, np.ndarray]:
     return inf, sup
 
 
-def _solve_saddlepoint(alpha: np.ndarray, g, h2, q) -> np.ndarray:
+def solve_saddlepoint(alpha: np.ndarray, g, h2, q) -> np.ndarray:
     """T solving Kbar'(T) = alpha inside the CGF's domain, vectorised over alpha.
 
     When q_k = a_k s_k^2 is the same for every sample (equal variances, q = 0; or the AJMRPF's
     variance change with a common ratio), the equation is a quadratic in T and is solved in closed
-    form (`_closed_form`). Otherwise: bracketed Newton-Raphson from T = 0 (`_newton`).
+    form (`closed_form`). Otherwise: bracketed Newton-Raphson from T = 0 (`newton`).
     `alpha` must lie strictly inside the support of Xbar (callers answer the rest exactly).
     """
     qc = q[..., :1]
     if (q == qc).all():
-        T = _closed_form(alpha, g, h2, qc[..., 0])
+        T = closed_form(alpha, g, h2, qc[..., 0])
     else:
-        T = _newton(alpha, g, h2, q)
+        T = newton(alpha, g, h2, q)
     # A root closer to the domain edge than double precision resolves (only for absurd inputs,
     # e.g. s1/s0 ~ 1e20) is held at the last representable point strictly inside.
     if (q * T[..., None] < 0.5).all():
         return T
-    t_lo, t_hi = _domain(q)
+    t_lo, t_hi = domain(q)
     return np.clip(T, np.nextafter(t_lo, np.inf), np.nextafter(t_hi, -np.inf))
 
 
-def _closed_form(alpha: np.ndarray, g, h2, q) -> np.ndarray:
+def closed_form(alpha: np.ndarray, g, h2, q) -> np.ndarray:
     """Saddlepoint for a common q: multiplying Kbar'(T) = alpha by D^2 (D = 1 - 2 q T) gives
     A2 T^2 + A1 T + A0 = 0, A2 = -q (4 q e + hb), A1 = hb + 4 q e - 2 q^2, A0 = q - e, with
     e = alpha - mean(g), hb = mean(h^2). Exactly one root has D > 0 (the other is the image of
@@ -173,13 +173,13 @@ def _closed_form(alpha: np.ndarray, g, h2, q) -> np.ndarray:
     d_b = np.where(np.isfinite(t_b), 1.0 - 2.0 * q * t_b, -np.inf)
     T = np.where(d_a >= d_b, t_a, t_b)
     T = np.where(np.isfinite(T), T, 0.0)
-    k1, k2 = _kbar12(T, g, h2, q[..., None])
+    k1, k2 = kbar12(T, g, h2, q[..., None])
     Tn = T - (k1 - alpha) / k2
     ok = (1.0 - 2.0 * q * Tn > 0) & np.isfinite(Tn)
     return np.where(ok, Tn, T)
 
 
-def _newton(alpha: np.ndarray, g, h2, q) -> np.ndarray:
+def newton(alpha: np.ndarray, g, h2, q) -> np.ndarray:
     """Bracketed Newton-Raphson from T = 0 (safeguarded as Numerical Recipes' rtsafe).
 
     Kbar' is increasing on the domain (Kbar'' > 0), so each evaluation tightens a bracket [lo, hi]
@@ -188,13 +188,13 @@ def _newton(alpha: np.ndarray, g, h2, q) -> np.ndarray:
     is replaced by bisection (by geometric expansion on an unbounded side); a step right after a
     bisection is always a Newton try, so the bisection cannot lock.
     """
-    lo, hi = _domain(q)
+    lo, hi = domain(q)
     lo = np.broadcast_to(lo, alpha.shape).copy()
     hi = np.broadcast_to(hi, alpha.shape).copy()
     T = np.zeros_like(alpha)
     newton_old = np.full_like(alpha, np.inf)  # last Newton step taken (inf after a bisection)
     for _ in range(_MAXIT):
-        k1, k2 = _kbar12(T, g, h2, q)
+        k1, k2 = kbar12(T, g, h2, q)
         f = k1 - alpha
         lo = np.where(f < 0, T, lo)
         hi = np.where(f > 0, T, hi)
@@ -302,19 +302,19 @@ def _daniels(T, q, h2, n, k2, w, iD, iD2) -> np.ndarray:
 _SIDE = np.array([-1.0, 1.0])
 
 
-def _pfa_pmd_core(alpha: np.ndarray, hyp, n: int, order: int) -> tuple[np.ndarray, np.ndarray]:
+def pfa_pmd_core(alpha: np.ndarray, hyp, n: int, order: int) -> tuple[np.ndarray, np.ndarray]:
     """General (unequal-variance capable) path. alpha (..., A); hyp = (g, h2, q), (2, ..., 1, n)."""
     g, h2, q = hyp
     g0, h20, q0 = g[0], h2[0], q[0]
     with np.errstate(all="ignore"):
-        inf, sup = _support(g0, h20, q0)  # the support of Xbar is the same under H0 and H1
+        inf, sup = support(g0, h20, q0)  # the support of Xbar is the same under H0 and H1
         degenerate = _avg(h20 + q0 * q0) == 0  # every X_k is constant: Xbar = mean(g)
         below = alpha <= inf
         above = alpha >= sup
         inside = ~(below | above | degenerate)
         # Points outside the open support are answered exactly; solve with a harmless stand-in.
         a_solve = np.where(inside, alpha, _avg(g0 + q0))
-        T0 = _solve_saddlepoint(a_solve, g0, h20, q0)
+        T0 = solve_saddlepoint(a_solve, g0, h20, q0)
         # The H1 CGF is the H0 CGF shifted by one: K1(t) = K0(t + 1), because X is the exact
         # log-likelihood ratio; so the H1 saddlepoint is T0 - 1 (no second solve). Both tails are
         # evaluated in one stacked pass, each directly (eq. 6.52, 6.58): the lower tail is
@@ -357,7 +357,7 @@ def _gaussian_pfa_pmd(alpha: np.ndarray, hyp, n: int) -> tuple[np.ndarray, np.nd
 def _dispatch(alpha, hyp, n, order):
     if not (hyp[2] != 0).any():
         return _gaussian_pfa_pmd(alpha, hyp, n)
-    return _pfa_pmd_core(alpha, hyp, n, order)
+    return pfa_pmd_core(alpha, hyp, n, order)
 
 
 def pfa_pmd(
@@ -381,7 +381,7 @@ def pfa_pmd(
     a = np.asarray(alpha, dtype=float)
     if not np.isfinite(a).all():
         raise ValueError("alpha must be finite")
-    hyp = _hypotheses(mu0[None, :], s0[None, :], mu1[None, :], s1[None, :])  # (2, 1, n)
+    hyp = hypotheses(mu0[None, :], s0[None, :], mu1[None, :], s1[None, :])  # (2, 1, n)
     pfa, pmd = _dispatch(a.reshape(-1), hyp, mu0.shape[-1], order)
     return pfa.reshape(a.shape), pmd.reshape(a.shape)
 
@@ -418,11 +418,11 @@ def roc_optimal(
         pfa = ndtr((-m - alphas) / sd)
         pmd = ndtr((alphas - m) / sd)
     else:
-        hyp = _hypotheses(mu0[..., None, :], s0[..., None, :], mu1[..., None, :], s1[..., None, :])
-        # X_k evaluated at y = mu0_k is g0_k and at y = mu1_k is g1_k (see _hypotheses).
+        hyp = hypotheses(mu0[..., None, :], s0[..., None, :], mu1[..., None, :], s1[..., None, :])
+        # X_k evaluated at y = mu0_k is g0_k and at y = mu1_k is g1_k (see hypotheses).
         a_min, a_max = _avg(hyp[0])  # (..., 1) each
         alphas = a_min + (a_max - a_min) * frac  # (..., n_alpha)
-        pfa, pmd = _pfa_pmd_core(alphas, hyp, n, order)
+        pfa, pmd = pfa_pmd_core(alphas, hyp, n, order)
     best = np.argmin(np.hypot(pfa, pmd), axis=-1)[..., None]  # hypot: no underflow of tiny tails
     if best.ndim == 1:
         i = best[0]
