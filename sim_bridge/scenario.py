@@ -32,6 +32,7 @@ from fdir_service.estimator_config import (
 )
 from fdir_service.paths import config_path
 from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, TomlTable, load_toml
+from sim_bridge.world_config import RealSky, parse_real_sky
 
 PROFILE_SHAPES = ("step", "exponential", "ramp", "intermittent")
 
@@ -98,13 +99,24 @@ class CommandConfig:
     altitude_steps: tuple[AltitudeStep, ...] = ()
 
 
+WORLD_ROWS = MEASUREMENTS + ("airspeed", "ax", "az")
+"""Rows a world can produce: the estimator's known rows, the pitot airspeed (air-relative, m/s) and
+the accelerometer's body-axis specific force (ax forward, az down, m/s^2)."""
+
+
 @dataclass(frozen=True)
 class SensorConfig:
-    """The world's sensors: rows produced and their true noise std per row (SI)."""
+    """The world's sensors: rows produced and their true noise std per row (SI), and the realism
+    that is off in the thesis scenarios (docs/real-world.md)."""
 
     measurements: tuple[str, ...]
     sigma: dict[str, float]
     gnss_gauss_markov: bool = False    # eq. 3.29 error model (off in the thesis scenarios)
+    gnss_rate_hz: float | None = None  # a GNSS fix every 1/rate s (None: every frame)
+    gnss_latency_s: float = 0.0        # a fix reports the altitude of latency s before
+    baro_bias_walk: float = 0.0        # barometer bias random walk, m / sqrt(s)
+    gyro_bias_sigma: float = 0.0       # q gyro: constant bias per run ~ N(0, sigma^2), rad/s
+    gyro_bias_walk: float = 0.0        # q gyro bias random walk, rad/s / sqrt(s)
 
 
 @dataclass(frozen=True)
@@ -125,6 +137,8 @@ class Scenario:
     filters: tuple[str, ...]
     proposed: str
     source: str = ""
+    sky: RealSky = RealSky()
+    """Wind, turbulence, airframe dispersion and the engine (all off in the thesis experiments)."""
 
     @property
     def steps(self) -> int:
@@ -206,19 +220,25 @@ def _command(w: TomlTable, truth: TruthConfig) -> CommandConfig:
 
 def _sensors(w: TomlTable) -> SensorConfig:
     se = w.sub("sensors", required=True)
-    meas = se.take("measurements", "strings", choices=MEASUREMENTS)
+    meas = se.take("measurements", "strings", choices=WORLD_ROWS)
     if not meas or len(set(meas)) != len(meas):
         raise ConfigError(f"{se.key('measurements')}: expected a non-empty list without repeats")
     sig_t = se.sub("sigma", required=True)
     sigma = {m: sig_t.take(m, "number", check=POSITIVE) for m in meas}
     sig_t.finish()
     sensors = SensorConfig(measurements=meas, sigma=sigma,
-                           gnss_gauss_markov=se.take("gnss_gauss_markov", "boolean", False))
+                           gnss_gauss_markov=se.take("gnss_gauss_markov", "boolean", False),
+                           gnss_rate_hz=se.take("gnss_rate_hz", "number", None, check=POSITIVE),
+                           gnss_latency_s=se.take("gnss_latency_s", "number", 0.0, check=NON_NEGATIVE),
+                           baro_bias_walk=se.take("baro_bias_walk", "number", 0.0, check=NON_NEGATIVE),
+                           gyro_bias_sigma=se.take("gyro_bias_sigma", "number", 0.0, check=NON_NEGATIVE),
+                           gyro_bias_walk=se.take("gyro_bias_walk", "number", 0.0, check=NON_NEGATIVE))
     se.finish()
     return sensors
 
 
-def _world(root: TomlTable) -> tuple[TruthConfig, CommandConfig, SensorConfig, tuple[FaultChannel, ...]]:
+def _world(root: TomlTable) -> dict[str, Any]:
+    """The world's parts as Scenario fields: truth, command, sensors, faults, sky."""
     w = root.sub("world", required=True)
     truth = _truth(w)
     command = _command(w, truth)
@@ -227,8 +247,9 @@ def _world(root: TomlTable) -> tuple[TruthConfig, CommandConfig, SensorConfig, t
     ids = [f.id for f in faults]
     if len(set(ids)) != len(ids):
         raise ConfigError(f"world.faults: fault ids must be unique, got {ids}")
+    sky = parse_real_sky(w, truth.model)
     w.finish()
-    return truth, command, sensors, faults
+    return dict(truth=truth, command=command, sensors=sensors, faults=faults, sky=sky)
 
 
 def _estimator_doc(root: TomlTable, exp_id: str, sensors: SensorConfig) -> dict[str, Any]:
@@ -271,15 +292,14 @@ def parse_scenario(doc: dict[str, Any], source: str = "<experiment>") -> Scenari
     x.finish()
     if head["proposed"] not in head["filters"]:
         raise ConfigError(f"experiment.proposed: {head['proposed']!r} must be one of experiment.filters")
-    truth, command, sensors, faults = _world(root)
-    est_doc = _estimator_doc(root, head["id"], sensors)
+    world = _world(root)
+    est_doc = _estimator_doc(root, head["id"], world["sensors"])
     root.finish()
     est = parse_estimator(est_doc, f"{source} [estimator]")
     if abs(est.dt_s - head["dt_s"]) > 1e-12:
         raise ConfigError(f"estimator.dt_s: expected the experiment's step {head['dt_s']}, got {est.dt_s}")
-    _check_fault_match(est, faults)
-    return Scenario(truth=truth, command=command, sensors=sensors, faults=faults, estimator=est,
-                    source=source, **head)
+    _check_fault_match(est, world["faults"])
+    return Scenario(estimator=est, source=source, **world, **head)
 
 
 def scenario_path(name_or_path: str | Path) -> Path:

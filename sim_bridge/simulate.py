@@ -22,7 +22,7 @@ from sim_bridge.autopilot import Autopilot
 from sim_bridge.faults import fault_vector
 from sim_bridge.scenario import Scenario
 from sim_bridge.sensors import SensorSuite
-from sim_bridge.world import Truth
+from sim_bridge.world import make_truth
 
 NavFn = Callable[[float, np.ndarray, np.ndarray, np.ndarray], Any]
 
@@ -85,7 +85,8 @@ def default_autopilot(scenario: Scenario, airframe: AirframeParams) -> Autopilot
 
 
 class SimStepper:
-    """The world one frame at a time: `frame()` then `advance(u_cmd)`, repeatedly."""
+    """The world one frame at a time: `frame()` then `advance(u_cmd)`, repeatedly. `airframe` is the
+    nominal airframe (the autopilot's); the truth may fly a dispersed one (`truth.params`)."""
 
     def __init__(self, scenario: Scenario, seed: int, airframe: AirframeParams | None = None) -> None:
         self.scenario = scenario
@@ -93,7 +94,7 @@ class SimStepper:
         self.airframe = airframe if airframe is not None else load_airframe(scenario.truth.airframe)
         sensor_ss, world_ss = np.random.SeedSequence(seed).spawn(2)
         self.sensors = SensorSuite(scenario, np.random.default_rng(sensor_ss))
-        self.truth = Truth(scenario, self.airframe, np.random.default_rng(world_ss))
+        self.truth = make_truth(scenario, self.airframe, np.random.default_rng(world_ss))
         self.dt = scenario.dt_s
         self.k = 0
         self.u_prev = self.truth.trim.u.copy()
