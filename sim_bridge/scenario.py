@@ -318,6 +318,14 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
 
 SCENARIO_IDS = ("ch4", "ch5a", "ch5b", "ch5c", "ch6")
+REAL_WORLDS = ("real-calm", "real-turbulence", "real-wind", "real-dispersed", "real-jsbsim")
+FAMILIES = {
+    "all": SCENARIO_IDS,
+    "thesis": SCENARIO_IDS,
+    "real": tuple(w + suffix for w in REAL_WORLDS for suffix in ("", "-faultfree")),
+}
+"""`sim-bridge experiment FAMILY`: the thesis's five, and the real-sky worlds (docs/real-world.md),
+each with its fault-free 10-minute variant."""
 
 
 def experiment_service_config(scenario: Scenario, text: str | None = None):
