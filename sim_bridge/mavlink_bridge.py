@@ -66,40 +66,79 @@ class AutopilotLink:
 
     def sensor_messages(self, t: float, y: np.ndarray, mask: np.ndarray,
                         static_pressure_pa: float) -> list[bytes]:
-        """The sensor messages of one frame (HEARTBEAT first on each new second), in send order."""
+        """The sensor messages of one frame (HEARTBEAT first on each new second), in send order:
+        GPS_RAW_INT (a GNSS fix), SCALED_PRESSURE, ATTITUDE, ODOMETRY (u, w), VFR_HUD (airspeed),
+        SCALED_IMU (accelerometer); a message only when one of its rows was measured."""
         t_ms = int(round(t * 1000.0))
-        t_us = int(round(t * 1e6))
         out: list[bytes] = []
-        sec = t_ms // 1000
-        if self._last_hb_s != sec:
-            self._last_hb_s = sec
+        if self._last_hb_s != t_ms // 1000:
+            self._last_hb_s = t_ms // 1000
             out.append(self.heartbeat())
 
         def val(name: str) -> float | None:
             j = self.rows.get(name)
             return None if j is None or not mask[j] else float(y[j])
 
-        nan = float("nan")
-        gnss = val("gnss_alt")
-        if gnss is not None:
-            out.append(self._pack(dialect.MAVLink_gps_raw_int_message(
-                t_us, dialect.GPS_FIX_TYPE_3D_FIX, 0, 0, int(round(gnss * 1000.0)), 100, 150,
-                65535, 65535, 12)))
-        if val("baro_alt") is not None:
-            out.append(self._pack(dialect.MAVLink_scaled_pressure_message(
-                t_ms, float(static_pressure_pa) / 100.0, 0.0, 1500)))
-        theta, q = val("theta"), val("q")
-        if theta is not None or q is not None:
-            out.append(self._pack(dialect.MAVLink_attitude_message(
-                t_ms, 0.0, nan if theta is None else theta, 0.0, 0.0, nan if q is None else q, 0.0)))
-        u, w = val("u"), val("w")
-        if u is not None or w is not None:
-            quat = [nan] * 4 if theta is None else [math.cos(theta / 2), 0.0, math.sin(theta / 2), 0.0]
-            out.append(self._pack(dialect.MAVLink_odometry_message(
-                t_us, dialect.MAV_FRAME_LOCAL_NED, dialect.MAV_FRAME_BODY_FRD, nan, nan, nan, quat,
-                nan if u is None else u, nan, nan if w is None else w, nan, nan, nan,
-                [nan] * 21, [nan] * 21, 0, dialect.MAV_ESTIMATOR_TYPE_NAIVE, 0)))
+        values = {name: val(name) for name in self.rows}
+        for make in (self._gnss, self._baro, self._attitude, self._odometry, self._vfr_hud, self._imu):
+            msg = make(t, values, static_pressure_pa)
+            if msg is not None:
+                out.append(self._pack(msg))
         return out
+
+    @staticmethod
+    def _gnss(t: float, v: dict, static_pressure_pa: float):
+        gnss = v.get("gnss_alt")
+        if gnss is None:
+            return None
+        return dialect.MAVLink_gps_raw_int_message(int(round(t * 1e6)), dialect.GPS_FIX_TYPE_3D_FIX, 0, 0,
+                                                   int(round(gnss * 1000.0)), 100, 150, 65535, 65535, 12)
+
+    @staticmethod
+    def _baro(t: float, v: dict, static_pressure_pa: float):
+        if v.get("baro_alt") is None:
+            return None
+        return dialect.MAVLink_scaled_pressure_message(int(round(t * 1000.0)),
+                                                       float(static_pressure_pa) / 100.0, 0.0, 1500)
+
+    @staticmethod
+    def _attitude(t: float, v: dict, static_pressure_pa: float):
+        theta, q = v.get("theta"), v.get("q")
+        if theta is None and q is None:
+            return None
+        nan = float("nan")
+        return dialect.MAVLink_attitude_message(int(round(t * 1000.0)), 0.0, nan if theta is None else theta,
+                                                0.0, 0.0, nan if q is None else q, 0.0)
+
+    @staticmethod
+    def _odometry(t: float, v: dict, static_pressure_pa: float):
+        u, w, theta = v.get("u"), v.get("w"), v.get("theta")
+        if u is None and w is None:
+            return None
+        nan = float("nan")
+        quat = [nan] * 4 if theta is None else [math.cos(theta / 2), 0.0, math.sin(theta / 2), 0.0]
+        return dialect.MAVLink_odometry_message(
+            int(round(t * 1e6)), dialect.MAV_FRAME_LOCAL_NED, dialect.MAV_FRAME_BODY_FRD, nan, nan, nan, quat,
+            nan if u is None else u, nan, nan if w is None else w, nan, nan, nan,
+            [nan] * 21, [nan] * 21, 0, dialect.MAV_ESTIMATOR_TYPE_NAIVE, 0)
+
+    @staticmethod
+    def _vfr_hud(t: float, v: dict, static_pressure_pa: float):
+        airspeed = v.get("airspeed")
+        if airspeed is None:
+            return None
+        nan = float("nan")
+        return dialect.MAVLink_vfr_hud_message(airspeed, nan, 0, 0, nan, nan)
+
+    @staticmethod
+    def _imu(t: float, v: dict, static_pressure_pa: float):
+        ax, az = v.get("ax"), v.get("az")
+        if ax is None and az is None:
+            return None
+
+        def mg(a: float | None) -> int:
+            return 0 if a is None else int(max(min(round(a / 9.80665 * 1000.0), 32767), -32768))
+        return dialect.MAVLink_scaled_imu_message(int(round(t * 1000.0)), mg(ax), 0, mg(az), 0, 0, 0, 0, 0, 0)
 
     def actuator_messages(self, t: float, u_cmd: np.ndarray) -> list[bytes]:
         """SERVO_OUTPUT_RAW (PWM) and ACTUATOR_OUTPUT_STATUS (float SI) for the command u_cmd (2,)."""

@@ -5,9 +5,14 @@ Rows in `scenario.sensors.measurements` order, SI units:
 - baro_alt  the static pressure of the faulty, noisy altitude -p_d + f + v is formed with the
             barometric formula and the measurement is that pressure converted back to altitude;
 - u, w, theta, q  y = state + f + v.
+- airspeed  the pitot: |air-relative velocity| + f + v (the truth's `air_data`);
+- ax, az    the accelerometer: body-axis specific force (forward, down; m/s^2) + f + v.
 v is zero-mean white Gaussian noise with the scenario's true sigma; f the sensor faults that
-target the row. Noise comes only from the generator handed in (one standard-normal draw of size m
-per frame, plus one per elapsed Gauss-Markov sample), so it depends on the seed only.
+target the row. Realism (off in the thesis scenarios, docs/real-world.md): a GNSS fix only every
+1/gnss_rate_hz s (the row is missing in between), reporting the altitude of gnss_latency_s before
+(whole frames); a barometer bias random walk; a q-gyro bias (constant per run plus a random walk).
+Noise comes only from the generator handed in (one standard-normal draw of size m per frame, plus
+one per elapsed Gauss-Markov sample and one per active bias walk), so it depends on the seed only.
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ GM_TIME_CONSTANT_S = 1100.0
 GM_SAMPLE_S = 1.0
 
 _STATE_ROW = {"gnss_alt": 0, "baro_alt": 0, "u": 1, "w": 2, "theta": 3, "q": 4}
+AIR_ROWS = ("airspeed", "ax", "az")
+"""Rows measured from the truth's air data, not from z."""
 
 
 class SensorSuite:
@@ -34,11 +41,12 @@ class SensorSuite:
         self.names = scenario.sensors.measurements
         m = len(self.names)
         self.sigma = np.array([scenario.sensors.sigma[n] for n in self.names])
-        idx = np.array([_STATE_ROW[n] for n in self.names])
-        sign = np.array([-1.0 if n in ("gnss_alt", "baro_alt") else 1.0 for n in self.names])
-        # y_clean = H z, H (m, 5) selects the state (altitude = -p_d).
+        # y_clean = H z, H (m, 5) selects the state (altitude = -p_d); air-data rows have no H row
         self.H = np.zeros((m, 5))
-        self.H[np.arange(m), idx] = sign
+        for r, n in enumerate(self.names):
+            if n in _STATE_ROW:
+                self.H[r, _STATE_ROW[n]] = -1.0 if n in ("gnss_alt", "baro_alt") else 1.0
+        self.air_rows = [(r, AIR_ROWS.index(n)) for r, n in enumerate(self.names) if n in AIR_ROWS]
         # Fault routing: y += S f, S (m, nf) with a 1 where sensor fault j targets row i.
         self.S = np.zeros((m, len(scenario.faults)))
         for j, ch in enumerate(scenario.faults):
@@ -46,14 +54,23 @@ class SensorSuite:
                 self.S[self.names.index(ch.target), j] = 1.0
         self.baro_row = self.names.index("baro_alt") if "baro_alt" in self.names else None
         self.gnss_row = self.names.index("gnss_alt") if "gnss_alt" in self.names else None
+        self.q_row = self.names.index("q") if "q" in self.names else None
         self.gauss_markov = scenario.sensors.gnss_gauss_markov and self.gnss_row is not None
+        self.config = scenario.sensors
+        self.dt = scenario.dt_s
         self.reset()
 
     def reset(self) -> None:
-        """Gauss-Markov error back to 0 (the generator is not rewound)."""
+        """Gauss-Markov error and biases back to their start (the generator is not rewound)."""
         self.gnss_error_m = 0.0
         self._gm_samples = 0
         self.last_static_pressure_pa = float("nan")
+        self.last_mask = np.ones(len(self.names), dtype=bool)
+        self.baro_bias_m = 0.0
+        cfg = self.config
+        self.gyro_bias = cfg.gyro_bias_sigma * self.rng.standard_normal() if cfg.gyro_bias_sigma else 0.0
+        self._altitudes: list[float] = []          # true altitudes of the last frames (latency)
+        self._last_fix = -1
 
     def _advance_gauss_markov(self, t: float) -> None:
         """b_{n+1} = exp(-Ts / tau) b_n + eta, eta ~ N(0, 0.40^2) m, one sample per Ts = 1 s (eq. 3.29)."""
@@ -63,18 +80,23 @@ class SensorSuite:
             self.gnss_error_m = decay * self.gnss_error_m + GM_SIGMA_M * self.rng.standard_normal()
             self._gm_samples += 1
 
-    def measure(self, z_true: np.ndarray, t: float, fault_values: np.ndarray) -> np.ndarray:
-        """y (m,) at time t (s) for the true state z_true (5,) and fault values (nf,), SI.
+    def measure(self, z_true: np.ndarray, t: float, fault_values: np.ndarray, air=None) -> np.ndarray:
+        """y (m,) at time t (s) for the true state z_true (5,) and fault values (nf,), SI; air: the
+        truth's `AirData` (needed only for airspeed / ax / az rows).
 
         Also sets `last_static_pressure_pa` (Pa): the barometer's pressure if the scenario has
-        one, else the noise-free static pressure of the true altitude.
+        one, else the noise-free static pressure of the true altitude; and `last_mask` (m,): the
+        rows measured this frame (False: no GNSS fix this frame).
         """
         z_true = np.asarray(z_true, dtype=float)
         noise = self.sigma * self.rng.standard_normal(self.sigma.size)
         y = self.H @ z_true + self.S @ np.asarray(fault_values, dtype=float) + noise
+        for r, i in self.air_rows:
+            y[r] += air.airspeed_mps if i == 0 else air.specific_force[i - 1]
         if self.gauss_markov:
             self._advance_gauss_markov(t)
             y[self.gnss_row] += self.gnss_error_m
+        self._realism(y, z_true, t)
         if self.baro_row is not None:
             p = pressure_from_altitude(float(y[self.baro_row]))
             self.last_static_pressure_pa = p
@@ -82,3 +104,27 @@ class SensorSuite:
         else:
             self.last_static_pressure_pa = pressure_from_altitude(-float(z_true[0]))
         return y
+
+    def _realism(self, y: np.ndarray, z_true: np.ndarray, t: float) -> None:
+        """GNSS rate and latency, baro and gyro biases, in place on y (off: nothing, no draws)."""
+        cfg = self.config
+        if self.gnss_row is not None and (cfg.gnss_rate_hz or cfg.gnss_latency_s):
+            self._gnss_fix(y, z_true, t)
+        if cfg.baro_bias_walk and self.baro_row is not None:
+            self.baro_bias_m += cfg.baro_bias_walk * np.sqrt(self.dt) * self.rng.standard_normal()
+            y[self.baro_row] += self.baro_bias_m
+        if cfg.gyro_bias_walk:
+            self.gyro_bias += cfg.gyro_bias_walk * np.sqrt(self.dt) * self.rng.standard_normal()
+        if self.q_row is not None and self.gyro_bias:
+            y[self.q_row] += self.gyro_bias
+
+    def _gnss_fix(self, y: np.ndarray, z_true: np.ndarray, t: float) -> None:
+        """The GNSS row: the altitude of `gnss_latency_s` before (whole frames); missing between fixes."""
+        cfg = self.config
+        self._altitudes.append(-float(z_true[0]))
+        lag = int(round(cfg.gnss_latency_s / self.dt))
+        self._altitudes = self._altitudes[-(lag + 1):]
+        y[self.gnss_row] += self._altitudes[0] - (-float(z_true[0]))
+        fix = int(np.floor(t * cfg.gnss_rate_hz + 1e-9)) if cfg.gnss_rate_hz else self._last_fix + 1
+        self.last_mask[self.gnss_row] = fix != self._last_fix
+        self._last_fix = fix

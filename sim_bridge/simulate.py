@@ -31,7 +31,8 @@ NavFn = Callable[[float, np.ndarray, np.ndarray, np.ndarray], Any]
 class Frame:
     """One sensor frame.
 
-    t (s); y (m,) SI in scenario measurement order; mask (m,) bool (all True here);
+    t (s); y (m,) SI in scenario measurement order; mask (m,) bool (False: a row without a new
+    sample this frame, e.g. between GNSS fixes);
     static_pressure_pa: the barometer's static pressure (Pa); z_true (5,); faults (nf,) SI at t;
     u_applied (2,): the commanded input [delta_e rad, delta_t] applied over the previous interval
     (what the onboard system knows; actuator faults excluded), the trim input at k = 0.
@@ -110,8 +111,9 @@ class SimStepper:
         if self._frame is None:
             t = self.t
             f = fault_vector(self.scenario, t)
-            y = self.sensors.measure(self.truth.z, t, f)
-            self._frame = Frame(t, y, np.ones(y.size, dtype=bool),
+            air = self.truth.air_data() if self.sensors.air_rows else None
+            y = self.sensors.measure(self.truth.z, t, f, air)
+            self._frame = Frame(t, y, self.sensors.last_mask.copy(),
                                 float(self.sensors.last_static_pressure_pa), self.truth.z.copy(), f,
                                 self.u_prev.copy())
         return self._frame
