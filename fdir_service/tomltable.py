@@ -111,6 +111,10 @@ class TomlTable:
         """The dotted key of `name` in this table, for error messages."""
         return f"{self.where}.{name}" if self.where else name
 
+    def peek(self, name: str) -> Any:
+        """The raw value under `name` without taking it (None if absent)."""
+        return self._data.get(name)
+
     def keys(self) -> list[str]:
         """The keys not consumed yet, in file order."""
         return list(self._data)

@@ -11,6 +11,7 @@ key time up to rounding (e.g. 200 * 0.05) fall on the intended side.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -81,3 +82,25 @@ def fault_vector(scenario: Scenario, t: float) -> np.ndarray:
 def fault_active_intervals(scenario: Scenario) -> list[tuple[str, float, float]]:
     """(fault id, start_s, end_s) of every profile component, for plots and summaries."""
     return [(ch.id, c.start_s, c.end_s) for ch in scenario.faults for c in ch.profile]
+
+
+def _drawn(comp: ProfileComponent, rng: np.random.Generator) -> ProfileComponent:
+    """One run's component: its varying fields drawn uniformly, in declaration order, then the sign."""
+    vals = {name: float(rng.uniform(lo, hi)) for name, lo, hi in comp.varies}
+    start = vals.get("start_s", comp.start_s)
+    end = start + vals["duration_s"] if "duration_s" in vals else comp.end_s
+    amplitude = vals.get("amplitude", comp.amplitude)
+    if comp.random_sign and rng.random() < 0.5:
+        amplitude = -amplitude
+    return dataclasses.replace(comp, start_s=start, end_s=max(end, start + 1e-6), amplitude=amplitude,
+                               varies=(), random_sign=False)
+
+
+def vary_profiles(scenario: Scenario, rng: np.random.Generator) -> Scenario:
+    """The scenario with one run's draw of every varying fault profile (start, duration, amplitude,
+    sign: `ProfileComponent.varies`); the scenario itself when nothing varies (no draws)."""
+    if not any(c.varies or c.random_sign for ch in scenario.faults for c in ch.profile):
+        return scenario
+    faults = tuple(dataclasses.replace(ch, profile=tuple(_drawn(c, rng) for c in ch.profile))
+                   for ch in scenario.faults)
+    return dataclasses.replace(scenario, faults=faults)

@@ -54,6 +54,11 @@ class ProfileComponent:
     tau_s: float = 1.0
     on_s: float = 1.0
     off_s: float = 1.0
+    varies: tuple[tuple[str, float, float], ...] = ()
+    """Per-run draws (`faults.vary_profiles`): (field, lo, hi) for start_s, duration_s, amplitude
+    (SI), each uniform; the fields above then hold the range's low end."""
+    random_sign: bool = False
+    """Per run, the amplitude's sign is + or - with equal probability."""
 
 
 @dataclass(frozen=True)
@@ -168,18 +173,49 @@ class Scenario:
 
 # ----------------------------------------------------------------------------- validation
 
+def _number_or_range(t: TomlTable, name: str, default: Any = ...) -> tuple[float, float] | None:
+    """A number (lo == hi) or a [lo, hi] range (drawn per run) under `name`; None if absent."""
+    kind = "numbers" if isinstance(t.peek(name), list) else "number"
+    raw = t.take(name, kind, default)
+    if raw is None:
+        return None
+    if isinstance(raw, (int, float)):
+        return float(raw), float(raw)
+    if len(raw) != 2 or raw[1] < raw[0]:
+        raise ConfigError(f"{t.key(name)}: expected a number or a range [low, high], got {raw}")
+    return float(raw[0]), float(raw[1])
+
+
+def _timing(t: TomlTable) -> tuple[tuple[float, float], tuple[float, float], bool]:
+    """(start range, end or duration range, whether the second is a duration) of a profile."""
+    start = _number_or_range(t, "start_s")
+    if start[0] < 0:
+        raise ConfigError(f"{t.key('start_s')}: expected a non-negative time, got {start[0]}")
+    duration = _number_or_range(t, "duration_s", None)
+    if duration is not None:
+        if duration[0] <= 0:
+            raise ConfigError(f"{t.key('duration_s')}: expected a positive duration, got {duration[0]}")
+        return start, duration, True
+    end = _number_or_range(t, "end_s")
+    if end[0] <= start[1]:
+        raise ConfigError(f"{t.key('end_s')}: expected a time after start_s ({start[1]}), got {end[0]}")
+    return start, end, False
+
+
 def _profile(t: TomlTable, scale: float) -> ProfileComponent:
     shape = t.take("shape", "string", choices=PROFILE_SHAPES)
-    start = t.take("start_s", "number", check=NON_NEGATIVE)
-    end = t.take("end_s", "number", check=POSITIVE)
-    if end <= start:
-        raise ConfigError(f"{t.key('end_s')}: expected a time after start_s ({start}), got {end}")
+    start, end, is_duration = _timing(t)
+    amp = _number_or_range(t, "amplitude")
+    ranges = (("start_s", start), ("amplitude", (amp[0] * scale, amp[1] * scale)))
+    varies = [(k, lo, hi) for k, (lo, hi) in ranges if hi > lo]
+    if is_duration:
+        varies.append(("duration_s", *end))
     comp = ProfileComponent(
-        shape=shape, start_s=start, end_s=end, amplitude=t.take("amplitude", "number") * scale,
-        tau_s=t.take("tau_s", "number", 1.0, check=POSITIVE),
+        shape=shape, start_s=start[0], end_s=start[0] + end[0] if is_duration else end[0],
+        amplitude=amp[0] * scale, tau_s=t.take("tau_s", "number", 1.0, check=POSITIVE),
         on_s=t.take("on_s", "number", 1.0, check=POSITIVE),
         off_s=t.take("off_s", "number", 1.0, check=POSITIVE),
-    )
+        varies=tuple(varies), random_sign=t.take("random_sign", "boolean", False))
     t.finish()
     return comp
 

@@ -4,8 +4,9 @@ Frame k at t_k = k dt: faults f_k = f(t_k); y_k = sensors(z_k, f_k); the navigat
 nav(t_k, y_k, mask_k, u_{k-1}) (a filter) or the truth z_k; u_k = autopilot(t_k, z_nav); the truth
 steps over [t_k, t_k+1) with u_k plus the actuator faults f_k.
 
-Randomness: `SeedSequence(seed).spawn(2)` -> [sensor noise, everything else], so the sensor noise
-of a run depends only on the seed, whatever the navigation does. Same seed, same bits.
+Randomness: `SeedSequence(seed).spawn(3)` -> [sensor noise, the world (turbulence, dispersion),
+the run's draw of varying fault profiles], so the sensor noise of a run depends only on the seed,
+whatever the navigation does. Same seed, same bits.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 
 from fdir_service.airframe import AirframeParams, linearize, load_airframe
 from sim_bridge.autopilot import Autopilot
-from sim_bridge.faults import fault_vector
+from sim_bridge.faults import fault_vector, vary_profiles
 from sim_bridge.scenario import Scenario
 from sim_bridge.sensors import SensorSuite
 from sim_bridge.world import make_truth
@@ -93,7 +94,8 @@ class SimStepper:
         self.scenario = scenario
         self.seed = seed
         self.airframe = airframe if airframe is not None else load_airframe(scenario.truth.airframe)
-        sensor_ss, world_ss = np.random.SeedSequence(seed).spawn(2)
+        sensor_ss, world_ss, fault_ss = np.random.SeedSequence(seed).spawn(3)
+        scenario = self.scenario = vary_profiles(scenario, np.random.default_rng(fault_ss))
         self.sensors = SensorSuite(scenario, np.random.default_rng(sensor_ss))
         self.truth = make_truth(scenario, self.airframe, np.random.default_rng(world_ss))
         self.dt = scenario.dt_s
