@@ -23,6 +23,7 @@ from sim_bridge.autopilot import Autopilot
 from sim_bridge.faults import fault_vector, vary_profiles
 from sim_bridge.scenario import Scenario
 from sim_bridge.sensors import SensorSuite
+from sim_bridge.wind import ned_to_body
 from sim_bridge.world import make_truth
 
 NavFn = Callable[[float, np.ndarray, np.ndarray, np.ndarray], Any]
@@ -46,6 +47,18 @@ class Frame:
     z_true: np.ndarray
     faults: np.ndarray
     u_applied: np.ndarray
+    wind_body: np.ndarray | None = None
+    """(2,) the air's velocity in body axes (m/s) at the frame; None in still air."""
+
+    def autopilot_view(self, z_nav: np.ndarray) -> np.ndarray:
+        """What the autopilot flies on: the navigation state (5,) with u, w made air-relative by
+        the wind (an autopilot holds airspeed with its pitot and its own wind estimate; the
+        world's wind stands for that estimate). In still air z_nav itself."""
+        if self.wind_body is None:
+            return z_nav
+        z = np.array(z_nav, dtype=float)
+        z[1:3] -= self.wind_body
+        return z
 
 
 @dataclass
@@ -113,11 +126,13 @@ class SimStepper:
         if self._frame is None:
             t = self.t
             f = fault_vector(self.scenario, t)
-            air = self.truth.air_data() if self.sensors.air_rows else None
+            moving = self.scenario.sky.moving_air
+            air = self.truth.air_data() if (self.sensors.air_rows or moving) else None
             y = self.sensors.measure(self.truth.z, t, f, air)
+            wind = ned_to_body(air.wind_ned[0], air.wind_ned[1], float(self.truth.z[3])) if moving else None
             self._frame = Frame(t, y, self.sensors.last_mask.copy(),
                                 float(self.sensors.last_static_pressure_pa), self.truth.z.copy(), f,
-                                self.u_prev.copy())
+                                self.u_prev.copy(), wind)
         return self._frame
 
     def advance(self, u_cmd: np.ndarray) -> None:
@@ -161,7 +176,7 @@ def run(scenario: Scenario, seed: int, seconds: float | None = None, nav: NavFn 
             out = nav(fr.t, fr.y, fr.mask, fr.u_applied)
             outputs.append(out)
             z_nav = np.asarray(out.state if hasattr(out, "state") else out, dtype=float)
-        u_k = ap.update(fr.t, z_nav)
+        u_k = ap.update(fr.t, fr.autopilot_view(z_nav))
         t[k], z[k], y[k], mask[k], faults[k] = fr.t, fr.z_true, fr.y, fr.mask, fr.faults
         u[k], navs[k], gamma[k], ps[k] = u_k, z_nav, ap.gamma_command, fr.static_pressure_pa
         stepper.advance(u_k)

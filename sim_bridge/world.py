@@ -82,7 +82,8 @@ class TruthEngine(Protocol):
 @dataclasses.dataclass(frozen=True)
 class AirData:
     """airspeed_mps: |air-relative velocity|; specific_force (2,): body [a_x, a_z] m/s^2 that an
-    accelerometer measures (acceleration minus gravity); wind_ned (2,): (north, down) m/s."""
+    accelerometer measures (acceleration minus gravity); wind_ned (2,): (north, down) m/s of the
+    air at the aircraft, turbulence included."""
 
     airspeed_mps: float
     specific_force: np.ndarray
@@ -178,6 +179,9 @@ class Truth:
                        if sky.turbulence.active else None)
         self.gust = np.zeros(3)
         self.wind = np.zeros(2)
+        if sky.moving_air and self.model is None:
+            self._air()                  # start in trim with the air: the ground velocity carries the wind
+            self.z[1:3] += ned_to_body(self.wind[0], self.wind[1], float(self.z[3])) + self.gust[:2]
 
     def applied_input(self, u_cmd: np.ndarray, fault_values: np.ndarray) -> np.ndarray:
         """The input the airframe feels: u_cmd (2,) plus the actuator faults (SI)."""
@@ -187,7 +191,7 @@ class Truth:
         return u
 
     def _air(self) -> None:
-        """The wind (NED) and the gust of the frame starting now."""
+        """The wind (NED) and the gust held over the frame starting now (at self.t)."""
         tc = self.scenario.truth
         self.wind = np.array(wind_ned(self.scenario.sky.wind, self.t, -float(self.z[0]), tc.airspeed_mps))
         if self.dryden is not None:
@@ -199,13 +203,14 @@ class Truth:
         if self.model is not None:
             self.z = self.model.step(self.z, u)
         elif self.scenario.sky.moving_air:
-            self._air()
             self.z = np.array(rk4_in_wind(self.z.tolist(), u.tolist(), self.dt, self.params,
                                           self.wind.tolist(), self.gust.tolist()))
         else:
             self.z = np.array(rk4_step_scalar(self.z.tolist(), u.tolist(), self.dt, self.params))
         self.u_applied = u
         self.t += self.dt
+        if self.scenario.sky.moving_air and self.model is None:
+            self._air()
         return self.z
 
     def air_data(self) -> AirData:
@@ -216,4 +221,7 @@ class Truth:
         g, th, q = self.params.g, z[3], z[4]
         ax = d[1] + q * z[2] + g * math.sin(th)
         az = d[2] - q * z[1] - g * math.cos(th)
-        return AirData(math.hypot(z[1] - wb[0], z[2] - wb[1]), np.array([ax, az]), self.wind.copy())
+        c, s = math.cos(th), math.sin(th)       # the Dryden gust back to NED, for the total wind
+        ug, wg = float(self.gust[0]), float(self.gust[1])
+        wind = self.wind + np.array([ug * c + wg * s, -ug * s + wg * c])
+        return AirData(math.hypot(z[1] - wb[0], z[2] - wb[1]), np.array([ax, az]), wind)

@@ -232,7 +232,7 @@ class _Flight:
                 self.rx.poll(delay)
         self._send(self.link.sensor_messages(fr.t, fr.y, fr.mask, fr.static_pressure_pa))
         z_est = self._estimate(k, int(round(fr.t * 1000)))
-        u = self.ap.update(fr.t, self._nav_state(k, fr.z_true, z_est))
+        u = self.ap.update(fr.t, fr.autopilot_view(self._nav_state(k, fr.z_true, z_est)))
         self._send(self.link.actuator_messages(fr.t, u))
         self.u_hist.append(np.asarray(u, dtype=float).copy())
         if self.truth is not None:
