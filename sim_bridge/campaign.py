@@ -111,10 +111,11 @@ class _TimedNav:
     start(y, mask) -> filter: with operating_point.init = "first_frame", the filter the first frame
     starts (on its measurements), as the service does."""
 
-    def __init__(self, filt, dt: float, rows: np.ndarray, start=None) -> None:
+    def __init__(self, filt, dt: float, rows: np.ndarray, start=None, world_rows: int | None = None) -> None:
         self.filt = filt
         self.start = start
-        self.rows = None if np.array_equal(rows, np.arange(rows.size)) else rows
+        same = np.array_equal(rows, np.arange(rows.size)) and world_rows in (None, rows.size)
+        self.rows = None if same else rows
         self.every = max(1, int(round(1.0 / dt)))
         self.k = 0
         self.seconds = 0.0
@@ -190,7 +191,8 @@ def _run_job(job: Job) -> RunResult:
             filt.output_covariance = False
         return filt
 
-    nav = _TimedNav(new_filter(), sc.dt_s, sc.estimator_rows(), _first_frame_start(sc, new_filter))
+    nav = _TimedNav(new_filter(), sc.dt_s, sc.estimator_rows(), _first_frame_start(sc, new_filter),
+                    len(sc.sensors.measurements))
     traj = simulator(sc, seed, nav=nav)
     outs = traj.outputs
     n = len(outs[0].x_mean)
