@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/python -m sim_bridge.demo
+	$(BIN)/python -m sim_bridge.demo $(DEMO)
 
 test: $(STAMP)
 	$(BIN)/ruff check .

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from fdir_service.mavlink import new_mavlink
+from sim_bridge.faults import channel_value
 
 
 def free_udp_port(host: str = "127.0.0.1") -> int:
@@ -180,8 +181,12 @@ def summary(gs: GroundStation, scenario, alt_err_m: float | None = None) -> list
             delay = "not declared"
         t, v = gs.series(f"f_{f.id}")
         sel = (t >= onset + 2.0) & (t < end)
+        if not t.size:
+            lines.append(f"  {f.id:8s} onset {onset:5.1f} s: not watched (the service's estimator has no "
+                         "such fault)")
+            continue
         if sel.any():
-            truth = np.array([sum(_profile_value(c, ti) for c in f.profile) for ti in t[sel]])
+            truth = np.asarray(channel_value(f, t[sel]))
             err = np.abs(v[sel] - truth) / f.unit_scale
             est = (f"mean |error| {err.mean():.2f} {f.unit}, max {err.max():.2f} {f.unit} "
                    f"({onset + 2:g}-{end:g} s)")
@@ -192,19 +197,6 @@ def summary(gs: GroundStation, scenario, alt_err_m: float | None = None) -> list
     if alt_err_m is not None:
         lines.append(f"  altitude: max |h - 500 m| = {alt_err_m:.2f} m while flying on the estimate")
     return lines
-
-
-def _profile_value(c, t: float) -> float:
-    if not c.start_s <= t < c.end_s:
-        return 0.0
-    if c.shape == "step":
-        return c.amplitude
-    if c.shape == "exponential":
-        return c.amplitude * math.exp((t - c.end_s) / c.tau_s)
-    if c.shape == "ramp":
-        return c.amplitude * (t - c.start_s) / (c.end_s - c.start_s)
-    period = c.on_s + c.off_s
-    return c.amplitude if ((t - c.start_s) % period) < c.on_s else 0.0
 
 
 def max_altitude_error(truth_path: Path, command_m: float) -> float | None:
@@ -283,8 +275,9 @@ def _watch(gs: GroundStation, sim: subprocess.Popen, view: _View) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = _parse_args(argv)
     from sim_bridge.scenario import load_scenario
+    from sim_bridge.simulate import run_faults
 
-    scenario = load_scenario(args.scenario)
+    scenario = run_faults(load_scenario(args.scenario), 0)    # the faults `sim-bridge fly` (seed 0) flies
     fault_ids = [f.id for f in scenario.faults]
     args.out.mkdir(parents=True, exist_ok=True)
     stamp = time.strftime("%Y%m%dT%H%M%S")

@@ -99,6 +99,11 @@ def default_autopilot(scenario: Scenario, airframe: AirframeParams) -> Autopilot
     return Autopilot(model, scenario.command, scenario.dt_s)
 
 
+def run_faults(scenario: Scenario, seed: int) -> Scenario:
+    """The scenario with the faults run `seed` flies (its draw of any varying fault profile)."""
+    return vary_profiles(scenario, np.random.default_rng(np.random.SeedSequence(seed).spawn(3)[2]))
+
+
 class SimStepper:
     """The world one frame at a time: `frame()` then `advance(u_cmd)`, repeatedly. `airframe` is the
     nominal airframe (the autopilot's); the truth may fly a dispersed one (`truth.params`)."""
@@ -107,8 +112,8 @@ class SimStepper:
         self.scenario = scenario
         self.seed = seed
         self.airframe = airframe if airframe is not None else load_airframe(scenario.truth.airframe)
-        sensor_ss, world_ss, fault_ss = np.random.SeedSequence(seed).spawn(3)
-        scenario = self.scenario = vary_profiles(scenario, np.random.default_rng(fault_ss))
+        sensor_ss, world_ss, _ = np.random.SeedSequence(seed).spawn(3)
+        scenario = self.scenario = run_faults(scenario, seed)
         self.sensors = SensorSuite(scenario, np.random.default_rng(sensor_ss))
         self.truth = make_truth(scenario, self.airframe, np.random.default_rng(world_ss))
         self.dt = scenario.dt_s

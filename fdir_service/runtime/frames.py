@@ -3,10 +3,13 @@
 Frame assembly is by message timestamp only (never the arrival time): a message stamped t (its
 `time_usec`, else `time_boot_ms`) belongs to frame k = round(t / T), T = 1 / frames.rate_hz.
 Frame k is complete, and handed to the filter at once, when every message type that feeds a
-measurement row has arrived for it; it is handed over incomplete (missing rows masked) as soon as
-any message stamped later than frame k arrives. Frames that never arrived, up to `max_gap_s`, are
-stepped with every row masked (pure prediction). The input of frame k is u_{k-1}: for each input
-channel, the latest value stamped at or before frame k-1 (the trim input until one arrives).
+measurement row and is due at frame k has arrived for it; a type's period (in frames) is learned
+from its arrivals (`KindRates`: a 5 Hz GNSS in 20 Hz frames is due every 4th frame), so a slower
+sensor does not hold the frames between its samples. A frame is handed over incomplete (missing
+rows masked) as soon as any message stamped later than frame k arrives. Frames that never
+arrived, up to `max_gap_s`, are stepped with every row masked (pure prediction). The input of
+frame k is u_{k-1}: for each input channel, the latest value stamped at or before frame k-1 (the
+trim input until one arrives).
 
 A measurement row silent (in message time) for longer than its `stale_s` is reported stale; a
 non-finite or out-of-range value is dropped and counted, never handed to the filter (the value
@@ -48,6 +51,39 @@ LATE_WINDOW_FRAMES = 100
 are late (dropped, counted); further back is a time jump."""
 INPUT_HISTORY = 8
 """Values kept per input channel (frame index, value)."""
+
+
+class KindRates:
+    """The period, in frames, of each message kind: the smallest gap between its last RATE_GAPS + 1
+    arrivals (1 until RATE_MIN_GAPS gaps were seen: due every frame)."""
+
+    RATE_GAPS = 8
+    RATE_MIN_GAPS = 3
+
+    def __init__(self) -> None:
+        self.last: dict[str, int] = {}
+        self.gaps: dict[str, list[int]] = {}
+
+    def seen(self, kind: str, k: int) -> None:
+        """A message of `kind` for frame k."""
+        last = self.last.get(kind)
+        if last is not None and k > last:
+            gaps = self.gaps.setdefault(kind, [])
+            gaps.append(k - last)
+            del gaps[:-self.RATE_GAPS]
+        if last is None or k > last:
+            self.last[kind] = k
+
+    def due(self, kind: str, k: int) -> bool:
+        """Whether frame k should wait for a message of `kind`."""
+        gaps = self.gaps.get(kind, ())
+        if len(gaps) < self.RATE_MIN_GAPS:
+            return True
+        return k - self.last[kind] >= min(gaps)
+
+    def clear(self) -> None:
+        self.last.clear()
+        self.gaps.clear()
 
 
 @dataclass
@@ -210,6 +246,7 @@ class FrameAssembler:
         # message "kinds" a frame waits for: message name + its where-filter
         self.kinds = [self._kind(fm) for fm in config.measurements]
         self.required = set(self.kinds)
+        self.rates = KindRates()
         self.pending: dict[int, _Partial] = {}
         self.last_index: int | None = None
         self.last_time_us: int | None = None
@@ -262,6 +299,7 @@ class FrameAssembler:
         self.events.append(TimeJumped(last * self.period_us * 1e-6, k_new * self.period_us * 1e-6,
                                       backward=k_new < last))
         self.pending.clear()
+        self.rates.clear()
         self.last_index = None   # a fresh start: the next frames are not predicted through
         self.last_time_us = None
         self.inputs.clear()
@@ -334,8 +372,9 @@ class FrameAssembler:
         for r in routes:
             if r.kind == "y":
                 part.seen.add(self.kinds[r.j])
+                self.rates.seen(self.kinds[r.j], k)
                 self._take_row(msg, r, part, t_us)
-        if self.required <= part.seen:
+        if all(kind in part.seen or not self.rates.due(kind, k) for kind in self.required):
             return self._emit(k, self.pending.pop(k))
         return []
 

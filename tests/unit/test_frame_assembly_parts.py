@@ -16,7 +16,7 @@ from fdir_service.runtime.frames import (
     routes_by_message,
 )
 from tests.helpers.experiments import ch4_service
-from tests.helpers.messages import TRIM_U, actuators, feed, sensors
+from tests.helpers.messages import P500_HPA, TRIM_U, actuators, feed, sensors
 
 CFG = ch4_service()
 
@@ -107,3 +107,23 @@ def test_late_and_surplus_measurements_are_counted_apart():
     assert feed(asm, sensors(60)[:1]) == []                       # frame 1 again, stamped later
     assert feed(asm, sensors(0)[:2]) == []                        # frame 0: late
     assert asm.rejected["surplus (above frame rate)"] == 1 and asm.rejected["late measurement"] == 2
+
+
+def test_a_slower_sensor_does_not_hold_the_frames_between_its_samples():
+    """GNSS at 5 Hz in 20 Hz frames: once its period is learned (3 gaps), the frames between its
+    fixes complete on their own last message (GNSS masked) instead of waiting for the next frame."""
+    asm = FrameAssembler(CFG, TRIM_U)
+    completed_on_own = []
+    for k in range(40):
+        e = 0.001 * ((k * 7) % 5)                        # changing values: no frozen sensor
+        msgs = sensors(50 * k, alt=500.0 + e, press_hpa=P500_HPA - e, pitch=0.05 + e, q=e,
+                       u=40.0 + e, w=1.9 + e)
+        if k % 4:
+            msgs = msgs[1:]                              # no GPS_RAW_INT between fixes
+        frames = feed(asm, msgs)
+        completed_on_own.append(any(f.index == k for f in frames))
+        for f in frames:
+            assert f.mask[0] == (f.index % 4 == 0)       # the GNSS row exactly on fix frames
+    assert not any(completed_on_own[1:12:4])             # still learning: waits for the next frame
+    assert all(completed_on_own[20:])                     # learned: every frame completes at once
+    assert asm.rates.due("GPS_RAW_INT", 40) and not asm.rates.due("GPS_RAW_INT", 41)   # last fix: 36
