@@ -126,4 +126,4 @@ def test_a_slower_sensor_does_not_hold_the_frames_between_its_samples():
             assert f.mask[0] == (f.index % 4 == 0)       # the GNSS row exactly on fix frames
     assert not any(completed_on_own[1:12:4])             # still learning: waits for the next frame
     assert all(completed_on_own[20:])                     # learned: every frame completes at once
-    assert asm.rates.due("GPS_RAW_INT", 40) and not asm.rates.due("GPS_RAW_INT", 41)   # last fix: 36
+    assert asm.rates.due("GPS_RAW_INT", 40) and not asm.rates.due("GPS_RAW_INT", 39)   # last fix: 36
