@@ -34,10 +34,21 @@ def _altitude_panel(ax, traj: Trajectory, col: dict[str, int]) -> None:
     for n, lab in (("gnss_alt", "GNSS altitude (measured)"), ("baro_alt", "baro altitude (measured)")):
         if n in col:
             style = dict(_MEAS_STYLE, color="tab:green" if n == "gnss_alt" else "0.55")
-            ax.plot(traj.t, traj.y[:, col[n]], label=lab, **style)
+            rows = traj.mask[:, col[n]]                   # a slower sensor: its own samples only
+            ax.plot(traj.t[rows], traj.y[rows, col[n]], label=lab, **style)
     ax.plot(traj.t, -traj.z[:, 0], "k", lw=1.4, label="true altitude")
     ax.set_title("Altitude")
     ax.set_ylabel("h (m)")
+
+
+def _speed_panel(ax, traj: Trajectory, col: dict[str, int], moving_air: bool) -> None:
+    """|(u, w)| of the truth (the airspeed in still air, the ground speed in wind) and the pitot."""
+    if "airspeed" in col:
+        ax.plot(traj.t, traj.y[:, col["airspeed"]], label="airspeed (pitot, measured)", **_MEAS_STYLE)
+    label = "true ground speed |(u, w)|" if moving_air else "true airspeed $V_a$"
+    ax.plot(traj.t, np.hypot(traj.z[:, 1], traj.z[:, 2]), "k", lw=1.4, label=label)
+    ax.set_title("Airspeed and ground speed" if moving_air else "Airspeed")
+    ax.set_ylabel("(m/s)")
 
 
 def _state_panel(ax, traj: Trajectory, col: dict[str, int], name: str, i: int, scale: float,
@@ -80,9 +91,7 @@ def plot_run(traj: Trajectory, scenario: Scenario, path: str | Path) -> Path:
     fig, axes = plt.subplots(4, 2, figsize=(13, 11), sharex=True)
     ax = axes.ravel()
     _altitude_panel(ax[0], traj, col)
-    ax[1].plot(traj.t, np.hypot(traj.z[:, 1], traj.z[:, 2]), "k", lw=1.4, label="true airspeed $V_a$")
-    ax[1].set_title("Airspeed")
-    ax[1].set_ylabel("$V_a$ (m/s)")
+    _speed_panel(ax[1], traj, col, scenario.sky.moving_air)
     _state_panel(ax[2], traj, col, "u", 1, 1.0, "m/s", "Body velocity u (forward)")
     _state_panel(ax[3], traj, col, "w", 2, 1.0, "m/s", "Body velocity w (down)")
     _state_panel(ax[4], traj, col, "theta", 3, np.degrees(1.0), "deg", "Pitch angle")

@@ -8,7 +8,7 @@ import numpy as np
 
 from sim_bridge.faults import fault_active_intervals
 from sim_bridge.scenario import load_scenario
-from sim_bridge.simulate import run
+from sim_bridge.simulate import run, run_faults
 
 
 def add_parser(subparsers) -> None:
@@ -33,14 +33,16 @@ def main(args: argparse.Namespace) -> int:
     de = np.degrees(traj.u[:, 0])
     print(f"  altitude  min {h.min():8.2f} m    max {h.max():8.2f} m   "
           f"(command {sc.command.altitude_m} m)")
-    print(f"  airspeed  min {va.min():8.2f} m/s  max {va.max():8.2f} m/s "
-          f"(command {sc.command.airspeed_mps} m/s)")
+    speed = "gnd speed" if sc.sky.moving_air else "airspeed "      # |(u, w)| is over the ground
+    print(f"  {speed} min {va.min():8.2f} m/s  max {va.max():8.2f} m/s "
+          f"(airspeed command {sc.command.airspeed_mps} m/s)")
     print(f"  delta_e   min {de.min():8.2f} deg  max {de.max():8.2f} deg")
     print(f"  delta_t   min {traj.u[:, 1].min():8.3f}      max {traj.u[:, 1].max():8.3f}")
-    chans = {ch.id: ch for ch in sc.faults}
-    for fid, t0, t1 in fault_active_intervals(sc):
+    flown = run_faults(sc, args.seed)                 # this run's draw of any varying fault
+    chans = {ch.id: ch for ch in flown.faults}
+    for fid, t0, t1 in fault_active_intervals(flown):
         ch = chans[fid]
-        j = sc.faults.index(ch)
+        j = flown.faults.index(ch)
         peak = np.max(np.abs(traj.faults[:, j])) / ch.unit_scale
         print(f"  fault {fid:7s} on {ch.target:8s} {t0:6.2f}-{t1:6.2f} s  "
               f"(channel peak {peak:.3g} {ch.unit})")
