@@ -103,6 +103,8 @@ class RunResult:
     transition: np.ndarray | None = None
     filter_s: float = 0.0
     wall_s: float = 0.0
+    world_faults: np.ndarray | None = None
+    """(K, nw) the world's own injected faults (SI, its fault order), monitored or not."""
 
 
 class _TimedNav:
@@ -218,6 +220,7 @@ def _run_job(job: Job) -> RunResult:
         pfa=_stack_opt(outs, "pfa"), pmd=_stack_opt(outs, "pmd"),
         transition=_stack_opt(outs, "transition"),
         filter_s=nav.seconds, wall_s=time.perf_counter() - t_start,
+        world_faults=np.asarray(traj.faults, f32).reshape(len(outs), -1),
     )
 
 
@@ -252,6 +255,8 @@ class FilterRuns:
     wall_s: np.ndarray
     sim_seeds: np.ndarray
     failures: list[RunFailure] = field(default_factory=list)
+    world_faults: np.ndarray | None = None
+    """(R, K, nw) the world's injected faults per run."""
 
 
 @dataclass
@@ -279,7 +284,7 @@ def stack_runs(results: list[RunResult | RunFailure]) -> FilterRuns:
         if isinstance(r, RunFailure):
             nan = {a: (None if getattr(ref, a) is None else np.full_like(getattr(ref, a), np.nan))
                    for a in ("z_true", "z_hat", "f_true", "f_hat", "prob", "n_eff", "top_x", "top_w",
-                             "pfa", "pmd", "transition")}
+                             "pfa", "pmd", "transition", "world_faults")}
             r = RunResult(r.filter, r.run, r.sim_seed, ref.t, top_t=ref.top_t, filter_s=np.nan,
                           wall_s=np.nan, **nan)
         rs.append(r)
@@ -293,7 +298,7 @@ def stack_runs(results: list[RunResult | RunFailure]) -> FilterRuns:
         f_hat=st("f_hat"), prob=st("prob"), n_eff=st("n_eff"), top_t=rs[0].top_t, top_x=st("top_x"),
         top_w=st("top_w"), pfa=st("pfa"), pmd=st("pmd"), transition=st("transition"),
         filter_s=np.array([r.filter_s for r in rs]), wall_s=np.array([r.wall_s for r in rs]),
-        sim_seeds=np.array([r.sim_seed for r in rs]), failures=failures,
+        sim_seeds=np.array([r.sim_seed for r in rs]), failures=failures, world_faults=st("world_faults"),
     )
 
 

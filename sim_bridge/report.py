@@ -25,6 +25,7 @@ from sim_bridge.metrics import (
     table_columns,
 )
 from sim_bridge.scenario import Scenario
+from sim_bridge.yardstick import GRACE_S, yardstick
 
 DEG = 180.0 / math.pi
 STATE_QUANTITIES = (("p_d", "m", 1.0), ("u", "m/s", 1.0), ("w", "m/s", 1.0), ("theta", "deg", DEG),
@@ -172,8 +173,18 @@ def summarise(camp: Campaign) -> dict:
             "step_ms": float(np.nanmean(fr.filter_s) / len(t) * 1e3),
             "median_run": filter_median_run(sc, fr),
             "failed_runs": [{"run": f.run, "sim_seed": f.sim_seed, "error": f.error} for f in fr.failures],
+            "yardstick": _yardstick(camp, fr),
         }
     return doc
+
+
+def _yardstick(camp: Campaign, fr: FilterRuns) -> dict | None:
+    """The safety yardstick (sim_bridge.yardstick) of one filter's runs."""
+    if fr.world_faults is None:
+        return None
+    sc = camp.scenario
+    return yardstick(fr.t, fr.prob, [f.id for f in sc.estimator.faults], fr.world_faults,
+                     [f.id for f in sc.faults])
 
 
 def check_orderings(results: dict[str, dict], orderings: tuple = ORDERINGS) -> list[dict]:
@@ -203,6 +214,8 @@ def _ordering_notes(orders: list[dict]) -> list[str]:
 def goal_rows(scenario: Scenario, doc: dict, thesis: dict) -> list[dict]:
     """The proposed filter's mean fault RMSE against the thesis's (goal: at or below)."""
     prop = scenario.proposed
+    if scenario.id not in thesis:          # not a thesis experiment: no table to meet
+        return []
     th = thesis.get(scenario.id, {}).get("filters", {}).get(prop, {})
     rows = []
     for f in scenario.estimator.faults:
@@ -239,9 +252,10 @@ def markdown(  # noqa: C901 - report assembly: one section after another, each a
     each miss's EXPLANATIONS entry (combined_markdown gives them once, at the top)."""
     sid = scenario.id
     th_all = thesis.get(sid, {}).get("filters", {})
+    where = (f"Thesis section {scenario.thesis_section}, Table {scenario.thesis_table}. "
+             if scenario.thesis_table else "")
     L = [f"# {sid}: {scenario.title}", "",
-         f"Thesis section {scenario.thesis_section}, Table {scenario.thesis_table}. "
-         f"{doc['runs']} closed-loop Monte Carlo runs, N = {doc['particles']} particles, seed "
+         where + f"{doc['runs']} closed-loop Monte Carlo runs, N = {doc['particles']} particles, seed "
          f"{doc['seed']}; every filter's autopilot flies on that filter's own estimate."
          + (f" Campaign wall time {wall_s:.1f} s." if wall_s is not None else ""), ""]
     orders = check_orderings({sid: doc})
@@ -256,6 +270,7 @@ def markdown(  # noqa: C901 - report assembly: one section after another, each a
                      f"{' / '.join(_fmt(v) for v in o['values'])} | {_fmt(o['holds'])} |")
         L.append("")
         L += _ordering_notes(orders)
+    L += yardstick_markdown(doc)
     goals = goal_rows(scenario, doc, thesis)
     if goals:
         L += [f"## Goal: {scenario.proposed} mean fault RMSE at or below the thesis's", "",
@@ -479,7 +494,7 @@ def write_report(camp: Campaign, out: str | Path, thesis: dict | None = None,
     thesis = thesis_tables() if thesis is None else thesis
     doc = summarise(camp)
     (out / "results.json").write_text(json.dumps(doc, indent=1))
-    figs = figures(camp, doc, out) if make_figures else []
+    figs = figures(camp, doc, out) + roc_figure(doc, out) if make_figures else []
     (out / "report.md").write_text(markdown(camp.scenario, doc, thesis, figs, camp.wall_s))
     return doc
 
@@ -624,3 +639,69 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def yardstick_markdown(doc: dict) -> list[str]:
+    """The safety yardstick of every filter (false alarms per flight hour, detection, delay,
+    isolation) and each filter's isolation confusion table, as markdown lines."""
+    rows = [(n, fd["yardstick"]) for n, fd in doc["filters"].items() if fd.get("yardstick")]
+    if not rows:
+        return []
+    y0 = rows[0][1]
+    L = ["## Safety yardstick", "",
+         f"By the service's own declare / clear hysteresis (declare at P >= {y0['p_declare']}); false "
+         "alarms counted on the fault-free flight time (no injected fault, none ended within "
+         f"{GRACE_S:g} s); definitions in sim_bridge/yardstick.py.", "",
+         "| filter | false alarms / flight hour | false alarms | fault-free hours | faults declared | "
+         "median delay (s) | p90 delay (s) | right fault isolated |", "|---|---|---|---|---|---|---|---|"]
+    for name, y in rows:
+        L.append(f"| {name} | {_fmt(y['false_alarms_per_hour'], 2)} | {y['false_alarms']} | "
+                 f"{_fmt(y['fault_free_hours'], 2)} | {y['detected']} / {y['episodes']} | "
+                 f"{_fmt(y['delay_s']['median'], 2)} | {_fmt(y['delay_s']['p90'], 2)} | "
+                 f"{_fmt(y['isolation_accuracy'], 2)} |")
+    L.append("")
+    for name, y in rows:
+        L += _confusion_markdown(name, y["isolation"])
+    return L
+
+
+def _confusion_markdown(name: str, confusion: dict[str, dict[str, int]]) -> list[str]:
+    """One filter's isolation confusion table: injected fault -> first fault declared."""
+    if not any(confusion.values()):
+        return []
+    cols = sorted({c for row in confusion.values() for c in row} - {"none"}) + ["none"]
+    L = [f"Isolation, {name} (rows: injected; columns: first fault declared)", "",
+         "| injected | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]
+    for wid, row in confusion.items():
+        L.append(f"| {wid} | " + " | ".join(str(row.get(c, 0)) for c in cols) + " |")
+    return L + [""]
+
+
+def roc_figure(doc: dict, out: Path, prefix: str = "") -> list[str]:
+    """roc.png: false alarms per flight hour against the fraction of injected faults declared, over
+    the declare threshold, one curve per filter ([] when there is nothing to draw)."""
+    curves = {n: fd["yardstick"]["roc"] for n, fd in doc["filters"].items()
+              if fd.get("yardstick") and fd["yardstick"]["episodes"]}
+    if not curves:
+        return []
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for name, roc in curves.items():
+        fa = [max(r["false_alarms_per_hour"] or 0.0, 1e-2) for r in roc]
+        det = [r["detection_fraction"] or 0.0 for r in roc]
+        ax.plot(fa, det, "o-", label=name)
+        for r, x, y in zip(roc, fa, det, strict=True):
+            ax.annotate(f"{r['p_declare']:g}", (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    ax.set_xscale("log")
+    ax.set(xlabel="false alarms per flight hour (0 drawn at 0.01)",
+           ylabel="fraction of injected faults declared", title="Declare-threshold ROC (labels: p_declare)",
+           ylim=(-0.02, 1.02))
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / f"{prefix}roc.png", dpi=110)
+    plt.close(fig)
+    return [f"{prefix}roc.png"]

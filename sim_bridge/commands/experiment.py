@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from fdir_service.errors import ConfigError
-from sim_bridge.scenario import SCENARIO_IDS, load_scenario
+from sim_bridge.scenario import FAMILIES, load_scenario
 
 
 def add_parser(subparsers) -> None:
@@ -18,13 +18,15 @@ def add_parser(subparsers) -> None:
         description="Run every filter of a scenario (plus the EKF-GATE baseline) over RUNS closed-loop "
         "Monte Carlo runs, in parallel processes or on a dask.distributed cluster, and write "
         "results.json, report.md and PNG figures beside the thesis's table.")
-    p.add_argument("scenario", help="scenario id (ch4, ch5a, ch5b, ch5c, ch6), a .toml path, or 'all'")
+    p.add_argument("scenario", help="experiment id (ch4, ch5a, ch5b, ch5c, ch6, real-calm, ...), a .toml "
+                   "path, or a family: 'all' / 'thesis' (the five thesis tables), 'real' (the real-sky "
+                   "worlds, each faulty and fault-free: docs/real-world.md)")
     p.add_argument("--runs", type=int, default=100, help="Monte Carlo runs per filter (default 100)")
     p.add_argument("--particles", type=int, default=None,
                    help="particles per filter (default: the scenario's, 1000)")
     p.add_argument("--seed", type=int, default=0, help="campaign seed (default 0)")
     p.add_argument("--out", default=None,
-                   help="output folder (default results/SCENARIO; with 'all', OUT/SCENARIO)")
+                   help="output folder (default results/SCENARIO; with a family, OUT/SCENARIO)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: cores)")
     p.add_argument("--dask", metavar="ADDRESS", default=None,
                    help="send the runs to this dask.distributed scheduler instead of local processes")
@@ -49,7 +51,7 @@ def _out_dir(args: argparse.Namespace, sid: str) -> Path:
     """results/<id>, --out (one scenario) or --out/<id> (all)."""
     if args.out is None:
         return Path("results") / sid
-    return Path(args.out) / sid if args.scenario == "all" else Path(args.out)
+    return Path(args.out) / sid if args.scenario in FAMILIES else Path(args.out)
 
 
 def _run_one(args: argparse.Namespace, sid: str, filters: list[str] | None) -> tuple[str, dict, Path]:
@@ -98,14 +100,14 @@ def main(args: argparse.Namespace) -> int:
     from sim_bridge.report import combined_markdown
 
     _check(args)
-    ids = list(SCENARIO_IDS) if args.scenario == "all" else [args.scenario]
+    ids = list(FAMILIES.get(args.scenario, (args.scenario,)))
     filters = args.filters.split(",") if args.filters else None
     t0 = time.perf_counter()
     results, outs = {}, {}
     for sid in ids:
         key, doc, out = _run_one(args, sid, filters)
         results[key], outs[key] = doc, out
-    if args.scenario == "all":
+    if args.scenario in FAMILIES:
         root = Path(args.out) if args.out is not None else Path("results")
         (root / "report.md").write_text(combined_markdown(root, ids))
         print(f"all scenarios: {root}/report.md")

@@ -1,0 +1,191 @@
+"""The safety engineer's yardstick: what the service would have declared, judged against the world.
+
+The service declares fault j when P(fault j) >= p_declare on every frame for declare_hold_s, and
+clears it when P <= p_clear for clear_hold_s (`[publish.declare]` of the service's default config,
+`fdir_service.runtime.publishing`). Applied here to each run's P(fault) series (`declared`):
+- a **false alarm** is a declaration that starts while the world injects no fault (any of its
+  faults, monitored or not) and not within GRACE_S after an injected fault ended; the
+  **fault-free flight time** is the time where those conditions hold; false alarms per flight hour
+  is their ratio over all runs;
+- an injected fault episode is **detected** when the monitored fault of the same id is declared at
+  some frame from its onset to GRACE_S after its end; its **delay** is from the onset to that
+  frame (0 if it was declared already);
+- **isolation**: the first monitored fault declared in that window (or already declared at the
+  onset), "none" if none: a confusion table injected id -> declared id;
+- the **ROC**: false alarms per hour and detection fraction over a grid of p_declare.
+Times in s; P(fault) series (R, K) per fault; frames at times t (K,).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fdir_service.recording.schemas import finite_or_none
+
+GRACE_S = 3.0
+"""After an injected fault ends, declarations are neither false alarms nor fault-free time for
+this long (the service's clear hold is 1 s; the estimate needs a little more to settle)."""
+ROC_THRESHOLDS = (0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
+EPS_S = 1e-6
+
+
+@dataclass(frozen=True)
+class Hysteresis:
+    """The service's declare / clear rule (probabilities, hold times in s)."""
+
+    p_declare: float = 0.9
+    declare_hold_s: float = 0.2
+    p_clear: float = 0.5
+    clear_hold_s: float = 1.0
+
+    @classmethod
+    def of_service(cls) -> Hysteresis:
+        """The rule of the service's default config (`[publish.declare]`)."""
+        from fdir_service.service_config import load_service_config
+
+        dc = load_service_config().publish.declare
+        return cls(dc.p_declare, dc.declare_hold_s, dc.p_clear, dc.clear_hold_s)
+
+    def with_threshold(self, p: float) -> Hysteresis:
+        """The same rule declaring at p (clearing below min(p_clear, p - 0.1))."""
+        return Hysteresis(p, self.declare_hold_s, min(self.p_clear, p - 0.1), self.clear_hold_s)
+
+
+def _switch(t: np.ndarray, crossing: np.ndarray, start: int, hold_s: float) -> int | None:
+    """The first frame >= start where `crossing` has held for hold_s since its run began (a run
+    counted from `start` at the earliest), or None."""
+    idx = np.flatnonzero(crossing[start:])
+    while idx.size:
+        s = start + int(idx[0])
+        rest = crossing[s:]
+        stop = s + (int(np.argmin(rest)) if not rest.all() else rest.size)      # end of the run
+        j = int(np.searchsorted(t, t[s] + hold_s - EPS_S, side="left"))
+        if j < stop:
+            return j
+        idx = np.flatnonzero(crossing[stop:])
+        start = stop
+    return None
+
+
+def declared(t: np.ndarray, p: np.ndarray, rule: Hysteresis) -> np.ndarray:
+    """(K,) bool: whether the service has the fault declared after each frame (P series p (K,))."""
+    p = np.nan_to_num(np.asarray(p, dtype=float), nan=0.0)
+    up, down = p >= rule.p_declare, p <= rule.p_clear
+    out = np.zeros(p.size, dtype=bool)
+    i, state = 0, False
+    while i < p.size:
+        j = _switch(t, down if state else up, i, rule.clear_hold_s if state else rule.declare_hold_s)
+        if j is None:
+            out[i:] = state
+            break
+        out[i:j] = state
+        state = not state
+        out[j] = state
+        i = j + 1
+    return out
+
+
+def _onsets(mask: np.ndarray) -> np.ndarray:
+    """Indices where a bool series (K,) turns True."""
+    m = mask.astype(np.int8)
+    return np.flatnonzero(np.diff(m, prepend=0) == 1)
+
+
+def episodes(active: np.ndarray) -> list[tuple[int, int]]:
+    """(start, end) index pairs of the True stretches of active (K,), end exclusive."""
+    d = np.diff(active.astype(np.int8), prepend=0, append=0)
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
+
+
+def quiet_mask(t: np.ndarray, world_active: np.ndarray) -> np.ndarray:
+    """(K,) bool: no world fault active and none ended within GRACE_S."""
+    quiet = ~world_active
+    for _, e in episodes(world_active):
+        quiet[e:np.searchsorted(t, t[e - 1] + GRACE_S, side="right")] = False
+    return quiet
+
+
+def _window(t: np.ndarray, s: int, e: int) -> slice:
+    """The frames from onset s to GRACE_S after the episode's last frame e - 1."""
+    return slice(s, int(np.searchsorted(t, t[e - 1] + GRACE_S, side="right")))
+
+
+def run_yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_faults: np.ndarray,
+                  world_ids: list[str], rule: Hysteresis) -> dict:
+    """One run: prob (K, nf) P(fault) of the monitored faults fault_ids; world_faults (K, nw) the
+    world's injected faults (0 where inactive). Returns counts to pool over runs (see `pool`)."""
+    dec = np.stack([declared(t, prob[:, j], rule) for j in range(prob.shape[1])], axis=1) \
+        if prob.shape[1] else np.zeros((t.size, 0), bool)
+    world_active = (np.nan_to_num(world_faults) != 0.0).any(axis=1) if world_faults.size else \
+        np.zeros(t.size, bool)
+    quiet = quiet_mask(t, world_active)
+    false_alarms = sum(int(quiet[_onsets(dec[:, j])].sum()) for j in range(dec.shape[1]))
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    out = {"false_alarms": false_alarms, "fault_free_s": float(quiet.sum() * dt), "episodes": []}
+    for w, wid in enumerate(world_ids):
+        for s, e in episodes(np.nan_to_num(world_faults[:, w]) != 0.0):
+            out["episodes"].append(_episode(t, dec, fault_ids, wid, s, e))
+    return out
+
+
+def _episode(t: np.ndarray, dec: np.ndarray, fault_ids: list[str], wid: str, s: int, e: int) -> dict:
+    """Detection and isolation of one injected episode [s, e) of world fault wid."""
+    win = _window(t, s, e)
+    d = dec[win]
+    first, first_k = "none", None
+    for j, fid in enumerate(fault_ids):
+        hits = np.flatnonzero(d[:, j])
+        if hits.size and (first_k is None or hits[0] < first_k):
+            first, first_k = fid, int(hits[0])
+    own = fault_ids.index(wid) if wid in fault_ids else None
+    hit = np.flatnonzero(d[:, own]) if own is not None else np.array([], int)
+    delay = float(t[s + hit[0]] - t[s]) if hit.size else None
+    return {"id": wid, "detected": hit.size > 0, "delay_s": delay, "isolated_as": first}
+
+
+def pool(runs: list[dict], world_ids: list[str]) -> dict:
+    """The yardstick over runs (each `run_yardstick`'s output) as results.json's `yardstick`."""
+    fa = sum(r["false_alarms"] for r in runs)
+    hours = sum(r["fault_free_s"] for r in runs) / 3600.0
+    eps = [ep for r in runs for ep in r["episodes"]]
+    delays = [ep["delay_s"] for ep in eps if ep["delay_s"] is not None]
+    confusion: dict[str, dict[str, int]] = {wid: {} for wid in world_ids}
+    for ep in eps:
+        row = confusion.setdefault(ep["id"], {})
+        row[ep["isolated_as"]] = row.get(ep["isolated_as"], 0) + 1
+    right = sum(1 for ep in eps if ep["isolated_as"] == ep["id"])
+
+    def q(x: float) -> float | None:
+        return finite_or_none(np.percentile(delays, x)) if delays else None
+
+    return {
+        "false_alarms": fa, "fault_free_hours": hours,
+        "false_alarms_per_hour": (fa / hours) if hours > 0 else None,
+        "episodes": len(eps), "detected": len(delays),
+        "detection_fraction": (len(delays) / len(eps)) if eps else None,
+        "delay_s": {"median": q(50), "p90": q(90), "max": q(100), "n": len(delays)},
+        "isolation": confusion,
+        "isolation_accuracy": (right / len(eps)) if eps else None,
+    }
+
+
+def yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_faults: np.ndarray,
+              world_ids: list[str], rule: Hysteresis | None = None,
+              thresholds: tuple[float, ...] = ROC_THRESHOLDS) -> dict:
+    """The yardstick of one filter over R runs: prob (R, K, nf), world_faults (R, K, nw); a run with
+    NaN everywhere (failed) is left out. Adds the ROC over the declare threshold."""
+    rule = rule or Hysteresis.of_service()
+    ok = [r for r in range(prob.shape[0]) if np.isfinite(prob[r]).any()]
+
+    def at(rl: Hysteresis) -> dict:
+        return pool([run_yardstick(t, prob[r], fault_ids, world_faults[r], world_ids, rl) for r in ok],
+                    world_ids)
+
+    out = at(rule)
+    out["p_declare"] = rule.p_declare
+    out["roc"] = [{"p_declare": p, **{k: v for k, v in at(rule.with_threshold(p)).items()
+                                      if k in ("false_alarms_per_hour", "detection_fraction")}}
+                  for p in thresholds]
+    return out
