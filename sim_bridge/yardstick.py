@@ -10,8 +10,9 @@ clears it when P <= p_clear for clear_hold_s (`[publish.declare]` of the service
 - an injected fault episode is **detected** when the monitored fault of the same id is declared at
   some frame from its onset to GRACE_S after its end; its **delay** is from the onset to that
   frame (0 if it was declared already);
-- **isolation**: the first monitored fault declared in that window (or already declared at the
-  onset), "none" if none: a confusion table injected id -> declared id;
+- **isolation**: the injected fault's own id when it was detected, else the first other monitored
+  fault whose declaration starts in that window, else "none": a confusion table injected id ->
+  declared id (a fault declared already, for another reason, is no answer to this one);
 - the **ROC**: false alarms per hour and detection fraction over a grid of p_declare.
 Times in s; P(fault) series (R, K) per fault; frames at times t (K,).
 """
@@ -130,19 +131,23 @@ def run_yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_f
     return out
 
 
+def _declarations_in(series: np.ndarray, win: slice) -> np.ndarray:
+    """Frames (relative to win.start) where a declaration of one fault (K,) bool starts inside win."""
+    on = _onsets(series)
+    return on[(on >= win.start) & (on < win.stop)] - win.start
+
+
 def _episode(t: np.ndarray, dec: np.ndarray, fault_ids: list[str], wid: str, s: int, e: int) -> dict:
     """Detection and isolation of one injected episode [s, e) of world fault wid."""
     win = _window(t, s, e)
-    d = dec[win]
-    first, first_k = "none", None
-    for j, fid in enumerate(fault_ids):
-        hits = np.flatnonzero(d[:, j])
-        if hits.size and (first_k is None or hits[0] < first_k):
-            first, first_k = fid, int(hits[0])
     own = fault_ids.index(wid) if wid in fault_ids else None
-    hit = np.flatnonzero(d[:, own]) if own is not None else np.array([], int)
-    delay = float(t[s + hit[0]] - t[s]) if hit.size else None
-    return {"id": wid, "detected": hit.size > 0, "delay_s": delay, "isolated_as": first}
+    hit = np.flatnonzero(dec[win, own]) if own is not None else np.array([], int)
+    if hit.size:
+        return {"id": wid, "detected": True, "delay_s": float(t[s + hit[0]] - t[s]), "isolated_as": wid}
+    starts = [(int(k[0]), fid) for j, fid in enumerate(fault_ids)
+              for k in (_declarations_in(dec[:, j], win),) if k.size]
+    first = min(starts)[1] if starts else "none"
+    return {"id": wid, "detected": False, "delay_s": None, "isolated_as": first}
 
 
 def pool(runs: list[dict], world_ids: list[str]) -> dict:

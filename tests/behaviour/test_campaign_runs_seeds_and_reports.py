@@ -221,6 +221,12 @@ def test_an_estimator_watching_faults_the_world_never_injects_is_scored_per_esti
     assert fd["detection"]["gnss"]["delay_s"] < 1.0                        # the 50 m step is found
     assert fd["rmse"]["f_q"]["mean"] < 0.5                                 # deg/s, about a zero truth
     assert "| f_theta | deg |" in (tmp_path / "report.md").read_text()
+    y = fd["yardstick"]                    # the safety yardstick: the two injected altimeter faults
+    assert y["episodes"] == 2 and y["detected"] == 2 and y["isolation"] == {"gnss": {"gnss": 1},
+                                                                             "baro": {"baro": 1}}
+    assert y["false_alarms_per_hour"] is not None and 0 < y["fault_free_hours"] < 20 / 3600
+    assert y["delay_s"]["median"] < 1.0 and [r["p_declare"] for r in y["roc"]][0] == 0.6
+    assert "## Safety yardstick" in (tmp_path / "report.md").read_text() and (tmp_path / "roc.png").exists()
 
 
 @pytest.mark.parametrize("init,lo,hi", [("first_frame", 0.0, 10.0), ("trim", 150.0, 250.0)])

@@ -1,0 +1,97 @@
+"""The safety yardstick on hand-made P(fault) series with known answers, and its hysteresis against
+the service's own Publisher."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fdir_service.estimation.base import StepOutput
+from fdir_service.mavlink import new_mavlink
+from fdir_service.runtime.publishing import Publisher
+from sim_bridge.yardstick import GRACE_S, Hysteresis, declared, pool, run_yardstick, yardstick
+from tests.helpers.experiments import ch4_service
+
+DT = 0.05
+RULE = Hysteresis(0.9, 0.2, 0.5, 1.0)
+
+
+def _t(seconds: float) -> np.ndarray:
+    return DT * np.arange(1, int(round(seconds / DT)) + 1)
+
+
+def test_hysteresis_is_the_services_own_rule():
+    assert Hysteresis.of_service() == RULE        # config/service/default.toml [publish.declare]
+    cfg = ch4_service()
+    rng = np.random.default_rng(0)
+    t = _t(150.0)
+    for _ in range(5):
+        p = np.clip(np.repeat(rng.random(t.size // 10), 10) + 0.05 * rng.standard_normal(t.size), 0, 1)
+        pub = Publisher(cfg.publish, cfg.estimator.faults[:1], new_mavlink(1, 191), False)
+        ref = []
+        for tk, pk in zip(t, p, strict=True):
+            out = StepOutput(tk, np.zeros(6), None, ("gnss",), np.zeros(1), np.array([pk]), 100.0, False)
+            pub.update_declarations(int(round(tk * 1e6)), out)
+            ref.append(pub.hyst[0].declared)
+        assert np.array_equal(declared(t, p, RULE), ref)
+
+
+def test_a_short_blip_is_no_declaration_a_held_excursion_is_one():
+    t = _t(20.0)
+    p = np.zeros(t.size)
+    p[100:103] = 0.95                       # 0.15 s: below the 0.2 s hold
+    p[200:206] = 0.95                       # 0.3 s: declared at its 5th frame, cleared 1 s later
+    d = declared(t, p, RULE)
+    assert not d[:200].any()
+    assert np.flatnonzero(d)[0] == 204 and d[204:226].all() and not d[226:].any()
+
+
+def test_one_false_alarm_in_ten_fault_free_minutes_is_six_per_hour():
+    t = _t(600.0)
+    p = np.zeros((t.size, 1))
+    p[4000:4006, 0] = 0.95
+    y = run_yardstick(t, p, ["gnss"], np.zeros((t.size, 1)), ["gnss"], RULE)
+    assert y["false_alarms"] == 1 and y["fault_free_s"] == pytest.approx(600.0, abs=0.1)
+    pooled = pool([y], ["gnss"])
+    assert pooled["false_alarms_per_hour"] == pytest.approx(6.0, rel=1e-3)
+    assert pooled["episodes"] == 0 and pooled["detection_fraction"] is None
+
+
+def test_detection_delay_isolation_and_the_grace_period():
+    """theta injected 30-40 s; theta declared 0.5 s after onset (isolated right); a q declaration
+    2 s after the end is inside the grace period (no false alarm); a q declaration at 60 s is one;
+    an unmonitored elevator fault at 70-80 s gets q declared: mis-isolated."""
+    t = _t(100.0)
+    world = np.zeros((t.size, 2))
+    world[(t >= 30) & (t < 40), 0] = 0.1
+    world[(t >= 70) & (t < 80), 1] = 0.05
+    p = np.zeros((t.size, 2))                                   # monitored: theta, q
+    p[(t >= 30.3) & (t < 40), 0] = 1.0
+    p[(t >= 42.0) & (t < 43), 1] = 1.0
+    p[(t >= 60.0) & (t < 61), 1] = 1.0
+    p[(t >= 71.0) & (t < 73), 1] = 1.0
+    y = pool([run_yardstick(t, p, ["theta", "q"], world, ["theta", "de"], RULE)], ["theta", "de"])
+    assert y["false_alarms"] == 1
+    assert y["fault_free_hours"] * 3600 == pytest.approx(100.0 - 20.0 - 2 * GRACE_S, abs=0.2)
+    assert y["episodes"] == 2 and y["detected"] == 1 and y["detection_fraction"] == 0.5
+    assert y["delay_s"]["median"] == pytest.approx(0.5, abs=1e-9)     # 0.3 s crossing + 0.2 s hold
+    assert y["isolation"] == {"theta": {"theta": 1}, "de": {"q": 1}}
+    assert y["isolation_accuracy"] == 0.5
+
+
+def test_roc_trades_false_alarms_for_detections():
+    """Noise peaks at 0.75 make false alarms only below p_declare 0.8; a fault at P = 0.85 is found
+    only below 0.9."""
+    t = _t(600.0)
+    world = np.zeros((1, t.size, 1))
+    world[0, (t >= 300) & (t < 310), 0] = 1.0
+    p = np.zeros((1, t.size, 1))
+    for k in range(20):
+        p[0, 200 + 500 * k: 210 + 500 * k, 0] = 0.75
+    p[0, (t >= 300) & (t < 310), 0] = 0.85
+    y = yardstick(t, p, ["f"], world, ["f"], RULE, thresholds=(0.7, 0.8, 0.9))
+    roc = {r["p_declare"]: r for r in y["roc"]}
+    assert roc[0.7]["false_alarms_per_hour"] > 50 and roc[0.7]["detection_fraction"] == 1.0
+    assert roc[0.8]["false_alarms_per_hour"] == 0 and roc[0.8]["detection_fraction"] == 1.0
+    assert roc[0.9]["false_alarms_per_hour"] == 0 and roc[0.9]["detection_fraction"] == 0.0
+    assert y["detection_fraction"] == 0.0 and y["p_declare"] == 0.9
