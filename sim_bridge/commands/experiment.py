@@ -87,6 +87,19 @@ def _print_orderings(results: dict[str, dict]) -> None:
               f"{'holds' if o['holds'] else 'does not hold'} ({json.dumps(o['values'])})")
 
 
+def _family_report(args: argparse.Namespace, ids: list[str]) -> None:
+    """OUT/report.md: the thesis's combined page, or a family's own (e.g. the real sky)."""
+    from sim_bridge.family_report import family_markdown
+    from sim_bridge.report import combined_markdown
+
+    root = Path(args.out) if args.out is not None else Path("results")
+    thesis = args.scenario in ("all", "thesis")
+    text = combined_markdown(root, ids) if thesis else family_markdown(
+        root, ids, f"The {args.scenario} family: campaigns")
+    (root / "report.md").write_text(text)
+    print(f"all of {args.scenario}: {root}/report.md")
+
+
 def _publish(outs: dict[str, Path], docs: str) -> None:
     from sim_bridge.report import publish
 
@@ -97,8 +110,6 @@ def _publish(outs: dict[str, Path], docs: str) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from sim_bridge.report import combined_markdown
-
     _check(args)
     ids = list(FAMILIES.get(args.scenario, (args.scenario,)))
     filters = args.filters.split(",") if args.filters else None
@@ -108,9 +119,7 @@ def main(args: argparse.Namespace) -> int:
         key, doc, out = _run_one(args, sid, filters)
         results[key], outs[key] = doc, out
     if args.scenario in FAMILIES:
-        root = Path(args.out) if args.out is not None else Path("results")
-        (root / "report.md").write_text(combined_markdown(root, ids))
-        print(f"all scenarios: {root}/report.md")
+        _family_report(args, ids)
     _print_orderings(results)
     if args.publish:
         _publish(outs, args.publish)
