@@ -60,8 +60,12 @@ SEVERITY = ((22.5 * KNOT, 3), (37.5 * KNOT, 4), (math.inf, 6))
 """(wind at 6 m below which, MIL-F-8785C probability-of-exceedance curve): light 15 kt -> 3
 (1e-2), moderate 30 kt -> 4 (1e-3), severe 45 kt -> 6 (1e-5)."""
 TURB_TUSTIN = 4
+TRIM_LONGITUDINAL, TRIM_NONE = 0, 6
+"""JSBSim's trim modes used (tLongitudinal: alpha, throttle, pitch trim; tNone: no control)."""
 ESC_SPEED_GAIN = 40.0 * 0.737562
 """The motor controller's speed feedback in flight, ft lbf/s per rad/s (40 W per rad/s)."""
+LATITUDE_DEG = 45.0
+"""Where the flight starts (longitude 0): WGS84 gravity 9.806 m/s^2 at 500 m, beside the airframe's 9.81."""
 SPIN_UP_RPM = 3000.0
 """Propeller speed reached before the trim (its steady-state search steps 0.5 s at a time)."""
 
@@ -147,11 +151,11 @@ class JSBSimTruth:
         pm = self.fdm.get_property_manager()
         self._n = {k: pm.get_node(v) for k, v in _P.items()}
         self.t = 0.0
-        self._set_wind(self.scenario.truth.altitude_m)
         self._initial_conditions()
         self._spin_up()
         self._initial_conditions()
         self.trim = self._trim()
+        self._carry_the_wind()
         self.fdm["fcs/esc-speed-gain"] = ESC_SPEED_GAIN
         self._start_turbulence()
         self.z = self._read_z()
@@ -202,19 +206,24 @@ class JSBSimTruth:
         g = self._get
         return np.array([-g("h"), g("u") * FT, g("w") * FT, g("theta"), g("q")])
 
-    def _set_wind(self, altitude_m: float) -> None:
-        """JSBSim's steady wind: the world's NED wind at self.t (s) and altitude_m (m)."""
+    def _wind(self, altitude_m: float) -> tuple[float, float]:
+        """The world's NED wind (north, down), ft/s, at self.t (s) and altitude_m (m)."""
         north, down = wind_ned(self.scenario.sky.wind, self.t, altitude_m, self.scenario.truth.airspeed_mps)
-        self._set("wind_n", north / FT)
-        self._set("wind_d", down / FT)
+        return north / FT, down / FT
+
+    def _set_wind(self, altitude_m: float) -> None:
+        """JSBSim's steady wind: the world's wind at self.t and altitude_m (m), held until the next."""
+        north, down = self._wind(altitude_m)
+        self._set("wind_n", north)
+        self._set("wind_d", down)
 
     def _initial_conditions(self) -> None:
         """Level flight heading north at the truth's airspeed and altitude, wings level."""
         tc, fdm = self.scenario.truth, self.fdm
-        for prop, value in (("ic/h-sl-ft", tc.altitude_m / FT), ("ic/vt-fps", tc.airspeed_mps / FT),
-                            ("ic/psi-true-deg", 0.0), ("ic/phi-deg", 0.0), ("ic/gamma-deg", 0.0),
-                            ("ic/beta-deg", 0.0), ("ic/p-rad_sec", 0.0), ("ic/q-rad_sec", 0.0),
-                            ("ic/r-rad_sec", 0.0)):
+        for prop, value in (("ic/h-sl-ft", tc.altitude_m / FT), ("ic/lat-geod-deg", LATITUDE_DEG),
+                            ("ic/vt-fps", tc.airspeed_mps / FT), ("ic/psi-true-deg", 0.0),
+                            ("ic/phi-deg", 0.0), ("ic/gamma-deg", 0.0), ("ic/beta-deg", 0.0),
+                            ("ic/p-rad_sec", 0.0), ("ic/q-rad_sec", 0.0), ("ic/r-rad_sec", 0.0)):
             fdm[prop] = value
         if not fdm.run_ic():
             raise RuntimeError("JSBSim: initial conditions failed")
@@ -245,9 +254,34 @@ class JSBSimTruth:
         return JSBSimTrim(tc.airspeed_mps, tc.altitude_m, alpha, float(z[3]) - alpha, z,
                           np.array([de, self._get("throttle")]))
 
+    def _carry_the_wind(self) -> None:
+        """Start in trim with the air, as `Truth`: the trimmed state (found in still air) with the
+        world's wind at t = 0 added to its velocity over the ground, then that wind set and the
+        integrators' derivative history taken at that state (JSBSim's trim mode "none"). The
+        initial-condition wind of JSBSim itself is not used."""
+        north, down = self._wind(self.scenario.truth.altitude_m)
+        if north == 0.0 and down == 0.0:
+            return
+        fdm = self.fdm
+        now = {k: fdm[k] for k in ("position/h-sl-ft", "attitude/theta-rad", "attitude/phi-rad",
+                                   "attitude/psi-rad", "velocities/v-north-fps", "velocities/v-east-fps",
+                                   "velocities/v-down-fps")}
+        for prop, value in (("ic/h-sl-ft", now["position/h-sl-ft"]), ("ic/theta-rad", now["attitude/theta-rad"]),
+                            ("ic/phi-rad", now["attitude/phi-rad"]), ("ic/psi-true-rad", now["attitude/psi-rad"]),
+                            ("ic/vn-fps", now["velocities/v-north-fps"] + north),
+                            ("ic/ve-fps", now["velocities/v-east-fps"]),
+                            ("ic/vd-fps", now["velocities/v-down-fps"] + down),
+                            ("ic/p-rad_sec", 0.0), ("ic/q-rad_sec", 0.0), ("ic/r-rad_sec", 0.0)):
+            fdm[prop] = value
+        fdm.run_ic()
+        self._set("wind_n", north)
+        self._set("wind_d", down)
+        self._evaluate()
+        fdm.do_trim(TRIM_NONE)
+
     def _trim_longitudinal(self) -> None:
         try:
-            self.fdm.do_trim(0)
+            self.fdm.do_trim(TRIM_LONGITUDINAL)
         except jsbsim.TrimFailureError as exc:
             tc = self.scenario.truth
             raise RuntimeError(f"JSBSim cannot trim the {MODEL} at {tc.airspeed_mps} m/s, "
@@ -256,22 +290,25 @@ class JSBSimTruth:
     def _trim_lateral(self) -> None:
         """Aileron and rudder trims (fcs/aileron-cmd-norm, rudder-cmd-norm) for p' = r' = 0 at
         the trimmed state: one Newton step on the (linear) roll and yaw accelerations."""
-        fdm = self.fdm
-        fdm.suspend_integration()
-        try:
-            x0 = np.array([self._get("aileron"), self._get("rudder")])
-            r0 = self._lateral_residual(x0)
-            jac = np.column_stack([(self._lateral_residual(x0 + 0.01 * e) - r0) / 0.01 for e in np.eye(2)])
-            self._lateral_residual(x0 - np.linalg.solve(jac, r0))
-        finally:
-            fdm.resume_integration()
+        x0 = np.array([self._get("aileron"), self._get("rudder")])
+        r0 = self._lateral_residual(x0)
+        jac = np.column_stack([(self._lateral_residual(x0 + 0.01 * e) - r0) / 0.01 for e in np.eye(2)])
+        self._lateral_residual(x0 - np.linalg.solve(jac, r0))
 
     def _lateral_residual(self, x: np.ndarray) -> np.ndarray:
-        """(p', r') rad/s^2 with the aileron and rudder trims x (2,), integration suspended."""
+        """(p', r') rad/s^2 with the aileron and rudder trims x (2,)."""
         self._set("aileron", x[0])
         self._set("rudder", x[1])
-        self.fdm.run()
+        self._evaluate()
         return np.array([self._get("pdot"), self._get("rdot")])
+
+    def _evaluate(self) -> None:
+        """Every model once at the current state, without integrating (dt = 0)."""
+        self.fdm.suspend_integration()
+        try:
+            self.fdm.run()
+        finally:
+            self.fdm.resume_integration()
 
     def _start_turbulence(self) -> None:
         """JSBSim's MIL-F-8785C turbulence (Tustin) with the world's wind at 20 ft, seeded from rng."""
