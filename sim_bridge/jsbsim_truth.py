@@ -82,6 +82,13 @@ _P = {  # short name -> JSBSim property
     "rpm": "propulsion/engine/propeller-rpm", "alpha": "aero/alpha-rad",
 }
 
+_CARRIED = {  # initial condition <- the trimmed state it is set from (the wind is added to vn, vd)
+    "h-sl-ft": "position/h-sl-ft", "theta-rad": "attitude/theta-rad", "phi-rad": "attitude/phi-rad",
+    "psi-true-rad": "attitude/psi-rad", "vn-fps": "velocities/v-north-fps",
+    "ve-fps": "velocities/v-east-fps", "vd-fps": "velocities/v-down-fps", "p-rad_sec": "velocities/p-rad_sec",
+    "q-rad_sec": "velocities/q-rad_sec", "r-rad_sec": "velocities/r-rad_sec",
+}
+
 
 def jsbsim_root() -> Path:
     """JSBSim's root folder: config/jsbsim (aircraft/, engine/), beside the airframe files."""
@@ -263,15 +270,10 @@ class JSBSimTruth:
         if north == 0.0 and down == 0.0:
             return
         fdm = self.fdm
-        now = {k: fdm[k] for k in ("position/h-sl-ft", "attitude/theta-rad", "attitude/phi-rad",
-                                   "attitude/psi-rad", "velocities/v-north-fps", "velocities/v-east-fps",
-                                   "velocities/v-down-fps")}
-        for prop, value in (("ic/h-sl-ft", now["position/h-sl-ft"]), ("ic/theta-rad", now["attitude/theta-rad"]),
-                            ("ic/phi-rad", now["attitude/phi-rad"]), ("ic/psi-true-rad", now["attitude/psi-rad"]),
-                            ("ic/vn-fps", now["velocities/v-north-fps"] + north),
-                            ("ic/ve-fps", now["velocities/v-east-fps"]),
-                            ("ic/vd-fps", now["velocities/v-down-fps"] + down),
-                            ("ic/p-rad_sec", 0.0), ("ic/q-rad_sec", 0.0), ("ic/r-rad_sec", 0.0)):
+        ic = {f"ic/{k}": fdm[v] for k, v in _CARRIED.items()}
+        ic["ic/vn-fps"] += north
+        ic["ic/vd-fps"] += down
+        for prop, value in ic.items():
             fdm[prop] = value
         fdm.run_ic()
         self._set("wind_n", north)
