@@ -8,21 +8,26 @@ files). `JSBSimTruth` honours `world.TruthEngine` as `world.Truth` does:
 - z (5,) = [p_d, u, w, theta, q], SI: p_d = -altitude above sea level (m), u, w the body-axis
   velocity over the ground (m/s), theta pitch (rad), q body pitch rate (rad/s);
 - inputs in the project's convention: delta_e (rad, positive pitches nose down) is
-  fcs/elevator-pos-rad, delta_t (0..1) is fcs/throttle-cmd-norm; actuator faults add to the
-  command exactly as in `Truth.applied_input`; the input is held over each frame;
+  fcs/elevator-pos-rad; delta_t (0..1, more is more thrust) is fcs/throttle-cmd-norm, which the
+  model's motor controller reads as a propeller speed command (aerosonde.xml, channel "Throttle");
+  actuator faults add to the command exactly as in `Truth.applied_input`; the input is held over
+  each frame;
 - one frame of scenario.dt_s runs ceil(120 dt) JSBSim steps (120 Hz at dt = 0.05 s).
 
 Start (`reset`): a fresh JSBSim instance at scenario.truth.airspeed_mps (true airspeed) and
-altitude_m, wings level, heading north, at latitude/longitude 0; the propeller is spun up (JSBSim's
-electric motor has unbounded torque at rest), then JSBSim's own longitudinal trim (alpha,
-throttle, pitch trim for u', w', q' = 0), a lateral trim of the aileron and rudder trims for
-p' = r' = 0 (the propeller's torque), and the longitudinal trim again. The lateral axes are held by
-the model's wing leveller (aileron / rudder on roll, heading and sideslip; the project's autopilot
-is longitudinal only).
+altitude_m, wings level, heading north, at 45 deg N; the propeller is spun up (JSBSim's trim
+searches the propeller's speed from where it is, with 0.5-s steps that do not converge from rest),
+then JSBSim's own longitudinal trim (alpha, throttle, pitch trim for u', w', q' = 0), the aileron
+and rudder trims for p' = r' = 0 (the propeller's torque), and the longitudinal trim again; then
+the motor controller's speed feedback is switched on (it is off while JSBSim trims, since its
+propeller search holds the motor power fixed). The lateral axes are held by the model's wing
+leveller (aileron / rudder on roll, heading and sideslip; the project's autopilot is longitudinal
+only).
 
 Air (`scenario.sky`): the world's steady wind, shear and 1-cosine gusts (`wind.wind_ned`, at the
 frame's start, held over the frame) are JSBSim's steady wind (atmosphere/wind-north-fps,
-wind-down-fps; JSBSim trims in that wind at t = 0). Turbulence is JSBSim's MIL-F-8785C Dryden model
+wind-down-fps); the run starts in trim with the air, as `Truth` (the still-air trim with the wind
+at t = 0 added to the velocity over the ground). Turbulence is JSBSim's MIL-F-8785C Dryden model
 (atmosphere/turb-type 4, Tustin discretisation) with the world's wind at 20 ft (6 m) and the
 severity (probability-of-exceedance curve) of that wind's class, light / moderate / severe =
 curves 3 / 4 / 6 (1e-2 / 1e-3 / 1e-5; MIL-F-8785C); it starts after the trim, from rest. Between
