@@ -29,7 +29,8 @@ def main(args: argparse.Namespace) -> int:
     h = -traj.z[:, 0]
     va = np.hypot(traj.z[:, 1], traj.z[:, 2])
     print(f"{sc.id}: {sc.title}")
-    print(f"  truth {sc.truth.model}, {traj.t.size} steps of {sc.dt_s} s, seed {args.seed}")
+    engine = "" if sc.sky.engine == "internal" else f" ({sc.sky.engine})"
+    print(f"  truth {sc.truth.model}{engine}, {traj.t.size} steps of {sc.dt_s} s, seed {args.seed}")
     de = np.degrees(traj.u[:, 0])
     print(f"  altitude  min {h.min():8.2f} m    max {h.max():8.2f} m   "
           f"(command {sc.command.altitude_m} m)")
