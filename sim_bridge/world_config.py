@@ -140,6 +140,9 @@ def parse_real_sky(w: TomlTable, model: str) -> RealSky:
     """The real-sky tables of `[world]`; ConfigError naming the key when one cannot apply."""
     sky = RealSky(engine=w.take("engine", "string", "internal", choices=ENGINES), wind=parse_wind(w),
                   turbulence=parse_turbulence(w), dispersion=parse_dispersion(w))
+    if sky.engine == "jsbsim" and sky.dispersion.active:
+        raise ConfigError(f"{w.key('dispersion')}: the JSBSim aircraft (config/jsbsim) is not dispersed; "
+                          "expected no [world.dispersion] with engine = \"jsbsim\"")
     if model == "linear" and (sky.moving_air or sky.dispersion.active or sky.engine != "internal"):
         raise ConfigError(f"{w.key('model')}: wind, turbulence, dispersion and other engines need the "
                           "nonlinear truth (model = \"nonlinear\")")
