@@ -109,6 +109,8 @@ def plot_run(traj: Trajectory, scenario: Scenario, path: str | Path) -> Path:
         a.set_xlabel("time (s)")
     truth = scenario.truth.model + (f" ({scenario.truth.linear_matrices} F, B)"
                                     if scenario.truth.model == "linear" else " (RK4)")
+    if scenario.sky.engine == "jsbsim":
+        truth = "JSBSim 6-DOF (config/jsbsim)"
     fig.suptitle(f"{scenario.id}: {scenario.title}\ntruth model {truth}, seed {traj.seed}, "
                  f"autopilot on true state, dt {scenario.dt_s} s", fontsize=11)
     fig.tight_layout()
