@@ -85,3 +85,28 @@ def family_markdown(root: str | Path, ids: list[str] | tuple[str, ...], title: s
     for sid in docs:
         L += _embedded(root, sid)
     return "\n".join(L)
+
+
+PUBLISHED_FIGURES = ("roc.png", "fault_estimates_median.png")
+"""The figures a family publishes into the docs (the others stay in the campaign folder)."""
+
+
+def publish_family(root: str | Path, docs_dir: str | Path, ids: list[str] | tuple[str, ...],
+                   title: str) -> Path:
+    """Copy each experiment's results.json, report.md and PUBLISHED_FIGURES to docs_dir/<id>/ and
+    write docs_dir/report.md (the family page, links to figures not published dropped)."""
+    import shutil
+
+    root, docs_dir = Path(root), Path(docs_dir)
+    for sid in _docs(root, ids):
+        dest = docs_dir / sid
+        dest.mkdir(parents=True, exist_ok=True)
+        for name in ("results.json", "report.md", *PUBLISHED_FIGURES):
+            if (root / sid / name).exists():
+                shutil.copy2(root / sid / name, dest / name)
+    text = family_markdown(root, ids, title)
+    kept = [line for line in text.splitlines()
+            if not (m := re.match(r"!\[[^]]*\]\(([^)]+)\)", line)) or (docs_dir / m.group(1)).exists()]
+    page = docs_dir / "report.md"
+    page.write_text("\n".join(kept) + "\n")
+    return page
