@@ -26,6 +26,7 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/sim-bridge bench
+	$(BIN)/sim-bridge bench --filters
 	$(BIN)/fdir bench
 	$(BIN)/python benchmarks/service_latency.py
 	$(BIN)/python benchmarks/replay_speed.py
