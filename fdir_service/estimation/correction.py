@@ -13,8 +13,13 @@ log-likelihood of each particle.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy.linalg.lapack import dpotrf, dtrtri
+
+if TYPE_CHECKING:
+    from fdir_service.estimation.frame import Frame
 
 _FLOOR: dict[int, tuple[np.ndarray, float]] = {}
 """id(R) -> (R, min diag R): R is a measurement model's constant matrix (cached by identity)."""
@@ -111,7 +116,7 @@ def gaussian_loglik(innovation: np.ndarray, S_inv: np.ndarray) -> np.ndarray:
     return -0.5 * np.einsum("ij,ij->j", innovation, S_inv @ innovation)
 
 
-def row_loglik(X: np.ndarray, frame) -> np.ndarray:
+def row_loglik(X: np.ndarray, frame: Frame) -> np.ndarray:
     """log N(y; H x_i, R) up to a constant for each particle of X (n, N) on the frame's rows (N,)."""
     mm = frame.mm
     if mm.m == 0:
@@ -124,7 +129,7 @@ def row_loglik(X: np.ndarray, frame) -> np.ndarray:
 class Likelihood:
     """No correction: the particles stay where the prediction put them."""
 
-    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame) -> np.ndarray:
+    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         return row_loglik(X, frame)
 
 
@@ -135,7 +140,7 @@ class KalmanCorrection:
     def __init__(self, pin) -> None:
         self.pin = pin
 
-    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame) -> np.ndarray:
+    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         mm = frame.mm
         if mm.m == 0:
             return np.zeros(X.shape[1])

@@ -14,11 +14,16 @@ Each part also answers how modes are resampled, pinned and turned into fault pro
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.layout import N_AIRFRAME
+
+if TYPE_CHECKING:
+    from fdir_service.estimation.frame import Frame
 
 MODE0_HANDLING = ("forced_zero", "reset_on_exit")
 
@@ -130,7 +135,8 @@ class NoJump:
         self.fault_threshold = np.asarray(fault_threshold, dtype=float)
         self.sentinels = np.zeros((self.fault_threshold.size, 0), dtype=bool)
 
-    def jump(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray, frame, rng: np.random.Generator) -> None:
+    def jump(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray, frame: Frame,
+             rng: np.random.Generator) -> None:
         """No modes: nothing jumps; no log-weight term."""
         return None
 
@@ -165,7 +171,7 @@ class MarkovJump:
         self.sentinels = np.zeros((nf, 0), dtype=bool)
         self.last_amplitude = np.zeros((nf, 0))
 
-    def jump(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray, frame,
+    def jump(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray, frame: Frame,
              rng: np.random.Generator) -> np.ndarray | None:
         """Jump the modes and fault entries of X in place; returns the (N,) log-weight term of a
         proposal transition (None for the model's own matrix)."""

@@ -21,48 +21,40 @@ runs on contiguous memory; modes (nf, N) bool; weights w (N,).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.correction import row_loglik, weighted_cov, weighted_mean_cov
+from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
+from fdir_service.estimation.slots import (
+    Correction,
+    JumpPart,
+    Predictor,
+    Regulariser,
+    Resampler,
+    ResampleTrigger,
+    SentinelWeighting,
+)
 
 STATE_BOUND = 1e6
 """A particle with any |state| >= this (SI: m, m/s, rad, rad/s) has diverged: it gets weight 0."""
 
 
 @dataclass
-class Frame:
-    """One frame as the parts see it: t (s), mask (m,) bool, u (2,), mm the measurement model of
-    the rows that arrived and yv (m_rows,) their values (SI)."""
-
-    t: float
-    mask: np.ndarray
-    u: np.ndarray
-    mm: MeasurementModel
-    yv: np.ndarray
-
-    @classmethod
-    def of(cls, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray, meas: MeasurementModel) -> Frame:
-        mask = np.asarray(mask, dtype=bool)
-        return cls(t, mask, np.asarray(u, dtype=float), meas.reduced(mask), np.asarray(y, dtype=float)[mask])
-
-
-@dataclass
 class Parts:
-    """The part filling each slot of a particle filter (module docstring); `resampler(w, rng)` is
-    a function of `resample`."""
+    """The part filling each slot of a particle filter (module docstring; the slots' protocols:
+    `slots.py`)."""
 
-    predict: Any
-    jump: Any
-    sentinel_weighting: Any
-    correction: Any
-    resample_due: Any
-    resampler: Any
-    regulariser: Any
+    predict: Predictor
+    jump: JumpPart
+    sentinel_weighting: SentinelWeighting
+    correction: Correction
+    resample_due: ResampleTrigger
+    resampler: Resampler
+    regulariser: Regulariser
 
 
 class ParticleFilter:

@@ -15,16 +15,21 @@ sigma for s, and its sentinel's airframe state moves by B_a s eps with the fault
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.layout import N_AIRFRAME
 
+if TYPE_CHECKING:
+    from fdir_service.estimation.frame import Frame
+
 
 class ThesisSentinels:
     """Sentinels are weighted like any particle: no extra log-weight term."""
 
-    def weigh(self, X: np.ndarray, frame, sentinels: np.ndarray, rng: np.random.Generator) -> None:
+    def weigh(self, X: np.ndarray, frame: Frame, sentinels: np.ndarray, rng: np.random.Generator) -> None:
         return None
 
 
@@ -84,7 +89,7 @@ class PriorSentinels:
             consts.append((sj, self.log_c[j] + np.log(sj)))
         return np.array(js, dtype=int), np.array(consts, dtype=float).reshape(-1, 2)
 
-    def weigh(self, X: np.ndarray, frame, sentinels: np.ndarray,
+    def weigh(self, X: np.ndarray, frame: Frame, sentinels: np.ndarray,
               rng: np.random.Generator) -> np.ndarray | None:
         """Spread this step's sentinels (nf, N) bool in X (n, N) in place; their (N,) log p / q, or
         None when no row of the frame allows it."""

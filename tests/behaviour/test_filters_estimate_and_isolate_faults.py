@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from fdir_service.estimation.factory import build_filter, build_particle_filter
-from fdir_service.estimation.particle import Frame, ParticleFilter
+from fdir_service.estimation.frame import Frame
+from fdir_service.estimation.particle import ParticleFilter
 from sim_bridge.scenario import SensorConfig, load_scenario
 from sim_bridge.synthetic import generate
 from tests.helpers.experiments import with_parts

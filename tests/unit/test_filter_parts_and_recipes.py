@@ -8,10 +8,10 @@ import pytest
 from fdir_service.estimation.adaptive import AdaptiveTransition
 from fdir_service.estimation.correction import KalmanCorrection, Likelihood, weighted_mean_cov
 from fdir_service.estimation.factory import build_filter
+from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.jump import ActuatorCarry, FixedTransition, MarkovJump, NoCarry, NoJump
 from fdir_service.estimation.layout import FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
-from fdir_service.estimation.particle import Frame
 from fdir_service.estimation.predict import GaussianPredict, ModeGatedPredict
 from fdir_service.estimation.recipes import FILTER_NAMES, PARTICLE_FILTERS, RECIPES, recipe
 from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter
