@@ -38,8 +38,7 @@ class ModeGatedPredict(GaussianPredict):
         noise = rng.standard_normal((N_AIRFRAME, N))
         noise *= self.q_std[:N_AIRFRAME]
         X[:N_AIRFRAME] += noise
-        for j in range(modes.shape[0]):              # a loop over faults (nf <= ~6), not particles
-            on = np.flatnonzero(modes[j])
-            if on.size:
-                X[N_AIRFRAME + j][on] += self.q_std[N_AIRFRAME + j, 0] * rng.standard_normal(on.size)
+        rows, cols = np.nonzero(modes)                # fault-major, as the faults are drawn in turn
+        if rows.size:
+            X[N_AIRFRAME + rows, cols] += self.q_std[N_AIRFRAME + rows, 0] * rng.standard_normal(rows.size)
         return X
