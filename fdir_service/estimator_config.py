@@ -34,8 +34,13 @@ from fdir_service.tomltable import (
     load_toml,
 )
 
-MEASUREMENTS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q")
-"""Measurement rows an estimator may use; SI units (m, m, m/s, m/s, rad, rad/s)."""
+OBSERVED_ROWS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q")
+"""Rows the filters observe (y = H x + v); SI units (m, m, m/s, m/s, rad, rad/s)."""
+IMU_ROWS = ("ax", "az")
+"""Accelerometer rows: body-axis specific force, forward and down (m/s^2). The kinematic process
+model takes them as inputs (parts.process_model = "kinematic"); no filter observes them."""
+MEASUREMENTS = OBSERVED_ROWS + IMU_ROWS
+"""Measurement rows an estimator may list."""
 ACTUATORS = ("delta_e", "delta_t")
 """Inputs a fault may act on: elevator (rad) and throttle (0..1)."""
 UNITS = {"m": 1.0, "m/s": 1.0, "rad": 1.0, "rad/s": 1.0, "deg": math.pi / 180.0,
@@ -65,6 +70,9 @@ class FaultSpec:
     amplitude_max: float | None = None
     pi01: float | None = None
     pi10: float | None = None
+    drift_sigma: float = 0.0
+    """parts.mode0 = "drift": random-walk std (SI per sqrt(s)) of the fault entry in mode 0, the
+    sensor's slow fault-free error (a gyro bias walk, a GNSS Gauss-Markov wander)."""
 
     @property
     def unit_scale(self) -> float:
@@ -92,7 +100,7 @@ class GatingSettings:
 class FilterSettings:
     """Settings of the filters' parts (SPEC sections 5-6); see docs/estimation.md for each choice."""
 
-    process_model: str = "nonlinear"     # "linear" | "nonlinear"
+    process_model: str = "nonlinear"     # "linear" | "nonlinear" | "kinematic"
     linear_matrices: str = "derived"     # "printed" (thesis) | "derived" (own airframe)
     sigma_x: tuple[float, ...] = (0.1, 0.1, 0.1, 0.001, 0.002)   # airframe-state process noise (5,)
     sigma_x_basis: str = "sqrt_second"   # "step": per-step std | "sqrt_second": std = sigma sqrt(dt)
@@ -101,7 +109,7 @@ class FilterSettings:
     bandwidth: float | None = None       # h (thesis value); if None, bandwidth_k * h_opt
     bandwidth_k: float = 0.2
     resampler: str = "multinomial"       # "multinomial" | "systematic"
-    mode0: str = "forced_zero"           # "forced_zero" | "reset_on_exit"
+    mode0: str = "forced_zero"           # "forced_zero" | "reset_on_exit" | "drift"
     pi01: float = 0.01
     pi10: float = 0.01
     saddlepoint_window: int = 3
@@ -146,6 +154,24 @@ class EstimatorConfig:
         """Measurement noise std (m,) the filters assume, in row order (SI)."""
         return list(self.sigma)
 
+    @property
+    def observed(self) -> tuple[str, ...]:
+        """The rows the filters observe: `measurements` without the IMU rows (m_obs,)."""
+        return tuple(r for r in self.measurements if r not in IMU_ROWS)
+
+    @property
+    def imu_rows(self) -> tuple[str, ...]:
+        """The IMU rows listed (inputs of a kinematic process model), in row order."""
+        return tuple(r for r in self.measurements if r in IMU_ROWS)
+
+    def observed_sigma(self) -> list[float]:
+        """Measurement noise std (m_obs,) of the observed rows (SI)."""
+        return [s for r, s in zip(self.measurements, self.sigma, strict=True) if r not in IMU_ROWS]
+
+    def imu_sigma(self) -> dict[str, float]:
+        """Accelerometer noise std (m/s^2) per IMU row listed."""
+        return {r: s for r, s in zip(self.measurements, self.sigma, strict=True) if r in IMU_ROWS}
+
     def state_process_std(self) -> tuple[float, ...]:
         """Per-step std (5,) of the airframe-state process noise (SI)."""
         s = self.settings
@@ -184,7 +210,7 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
     if not fid.isidentifier() or len(fid) > 7:
         raise ConfigError(f"{t.key('id')}: expected a short identifier (<= 7 chars, for "
                           f"MAVLink names like pfa_<id>), got {fid!r}")
-    target = t.take("target", "string", choices=rows + ACTUATORS)
+    target = t.take("target", "string", choices=tuple(r for r in rows if r not in IMU_ROWS) + ACTUATORS)
     unit = t.take("unit", "string", choices=tuple(UNITS))
     amax = t.take("amplitude_max", "number", None, check=POSITIVE)
     spec = FaultSpec(
@@ -194,6 +220,7 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         amplitude_max=None if amax is None else amax * UNITS[unit],
         pi01=t.take("pi01", "number", None, check=UNIT_INTERVAL),
         pi10=t.take("pi10", "number", None, check=UNIT_INTERVAL),
+        drift_sigma=t.take("drift_sigma", "number", 0.0, check=NON_NEGATIVE),
     )
     t.finish()
     return spec
@@ -262,9 +289,9 @@ def _gating(f: TomlTable) -> GatingSettings:
 
 
 _CHOICES = {
-    "process_model": ("linear", "nonlinear"), "linear_matrices": ("printed", "derived"),
+    "process_model": ("linear", "nonlinear", "kinematic"), "linear_matrices": ("printed", "derived"),
     "sigma_x_basis": ("step", "sqrt_second"), "resampler": ("multinomial", "systematic"),
-    "mode0": ("forced_zero", "reset_on_exit"), "sentinel_weighting": ("thesis", "prior"),
+    "mode0": ("forced_zero", "reset_on_exit", "drift"), "sentinel_weighting": ("thesis", "prior"),
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"),
 }
@@ -299,6 +326,21 @@ def _check_prior(settings: FilterSettings, faults: tuple[FaultSpec, ...]) -> Non
                           f"every sensor fault; missing for {missing}")
 
 
+def _check_kinematic(settings: FilterSettings, faults: tuple[FaultSpec, ...],
+                     rows: tuple[str, ...]) -> None:
+    """The kinematic process model needs the accelerometer rows and sees no actuator."""
+    if settings.process_model != "kinematic":
+        return
+    missing = [r for r in IMU_ROWS if r not in rows]
+    if missing:
+        raise ConfigError(f"parts.process_model = \"kinematic\" integrates the accelerometer: "
+                          f"measurements.rows must list {', '.join(IMU_ROWS)}; missing {missing}")
+    actuators = [f.id for f in faults if f.kind == "actuator"]
+    if actuators:
+        raise ConfigError(f"parts.process_model = \"kinematic\" has no aerodynamics, so it cannot see "
+                          f"actuator faults {actuators}; watch them with process_model = \"nonlinear\"")
+
+
 def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> EstimatorConfig:
     """Validate a parsed estimator document; raise ConfigError naming the first bad key."""
     root = TomlTable(doc, "")
@@ -312,6 +354,7 @@ def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> Estimat
     faults = _faults(root, rows)
     settings = _settings(root, faults)
     _check_prior(settings, faults)
+    _check_kinematic(settings, faults, rows)
     op = _operating_point(root)
     root.finish()
     return EstimatorConfig(operating_point=op, measurements=rows, sigma=sigma, faults=faults,

@@ -21,12 +21,14 @@ from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.correction import KalmanCorrection, Likelihood
 from fdir_service.estimation.gating import GatedKF, frozen_fault_scenario
 from fdir_service.estimation.imm import IMMKalman
+from fdir_service.estimation.inputs import RowSplit
 from fdir_service.estimation.jump import ActuatorCarry, FixedTransition, MarkovJump, NoCarry, NoJump
 from fdir_service.estimation.kalman import KalmanFilter
+from fdir_service.estimation.kinematic import KinematicProcess
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.particle import ParticleFilter, Parts
-from fdir_service.estimation.predict import GaussianPredict, ModeGatedPredict
+from fdir_service.estimation.predict import DriftPredict, GaussianPredict, ModeGatedPredict
 from fdir_service.estimation.process import LinearProcess, NonlinearProcess
 from fdir_service.estimation.recipes import Recipe, recipe
 from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter, h_opt
@@ -71,7 +73,7 @@ def trim_input(config: EstimatorConfig) -> np.ndarray:
 
 def _parts(scenario: EstimatorConfig):
     layout = FaultLayout.from_estimator(scenario)
-    meas = MeasurementModel.build(layout, scenario.filter_sigma())
+    meas = MeasurementModel.build(layout, scenario.observed_sigma())
     est = scenario.settings
     q_std = np.array(list(scenario.state_process_std()) + [f.sigma_f for f in scenario.faults])
     x0_std = np.array(list(est.x0_sigma) + [f.x0_sigma for f in scenario.faults])
@@ -99,7 +101,7 @@ def build_kalman(scenario: EstimatorConfig, x0: np.ndarray | None = None, name: 
         meas.H[:, N_AIRFRAME:] = 0.0
     process = LinearProcess(estimator_linear_model(scenario), layout)
     amp = AmplitudePredictor(layout, meas if h_fault_columns else MeasurementModel.build(
-        layout, scenario.filter_sigma()), process.B_actuator, q_std[:N_AIRFRAME])
+        layout, scenario.observed_sigma()), process.B_actuator, q_std[:N_AIRFRAME])
     return KalmanFilter(process, meas, layout, np.diag(q_std**2), _x0(scenario, layout, x0),
                         np.diag(x0_std**2), name=name,
                         fault_threshold=FAULT_THRESHOLD_SIGMAS * amp.sigma,
@@ -120,6 +122,8 @@ def build_imm(scenario: EstimatorConfig, x0: np.ndarray | None = None,
 
 
 def _process(estimator: EstimatorConfig, layout: FaultLayout):
+    if estimator.settings.process_model == "kinematic":
+        return KinematicProcess(estimator.dt_s, layout)
     lm = estimator_linear_model(estimator)
     if estimator.settings.process_model == "linear":
         return LinearProcess(lm, layout)
@@ -189,6 +193,18 @@ def _regulariser(rec: Recipe, estimator: EstimatorConfig, amp: AmplitudePredicto
     return GlobalJitter(h, shrink=rec.regularise == "shrink")
 
 
+def _predictor(rec: Recipe, estimator: EstimatorConfig, process, q_std: np.ndarray):
+    """Process noise by mode (parts.mode0): mode-0 faults pinned, drifting, or as in mode 1."""
+    mode0 = estimator.settings.mode0 if rec.has_modes else "free"
+    if mode0 == "forced_zero":
+        return ModeGatedPredict(process, q_std)
+    if mode0 == "drift":
+        drift = np.array([f.drift_sigma for f in estimator.faults]) * np.sqrt(estimator.dt_s)
+        bound = np.array([f.amplitude_max or np.inf for f in estimator.faults])
+        return DriftPredict(process, q_std, drift, bound)
+    return GaussianPredict(process, q_std)
+
+
 def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
                    q_std: np.ndarray, N: int, roc=None) -> tuple[Parts, AmplitudePredictor]:
     """The parts of a particle filter of recipe `rec` (and its amplitude predictor)."""
@@ -196,10 +212,9 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
     process = _process(estimator, layout)
     amp = AmplitudePredictor(layout, meas, process.B_actuator, q_std[:N_AIRFRAME])
     jump, sentinels = _jump_parts(rec, estimator, layout, meas, process, amp, roc)
-    gated = rec.has_modes and est.mode0 == "forced_zero"
     every = rec.resample == "every_step"
     return Parts(
-        predict=(ModeGatedPredict if gated else GaussianPredict)(process, q_std),
+        predict=_predictor(rec, estimator, process, q_std),
         jump=jump, sentinel_weighting=sentinels,
         correction=KalmanCorrection(jump.pin) if rec.correction == "kalman" else Likelihood(),
         resample_due=EveryStep() if every else BelowEffectiveSize(est.resample_threshold),
@@ -252,4 +267,7 @@ def build_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator
     is the initial airframe-state mean (default: the estimator's own trim state).
     """
     rec = recipe(name)
-    return _BUILDERS[rec.family](name, estimator, rng, particles, x0)
+    filt = _BUILDERS[rec.family](name, estimator, rng, particles, x0)
+    kinematic = rec.family == "particle" and estimator.settings.process_model == "kinematic"
+    filt.rows = RowSplit.of(estimator, kinematic, trim_state(estimator))
+    return filt

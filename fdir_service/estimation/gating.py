@@ -23,6 +23,7 @@ import dataclasses
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
+from fdir_service.estimation.inputs import NO_SPLIT
 from fdir_service.estimator_config import EstimatorConfig
 
 NAME = "EKF-GATE"
@@ -39,7 +40,7 @@ def frozen_fault_scenario(scenario: EstimatorConfig) -> EstimatorConfig:
 
 def fault_rows(scenario: EstimatorConfig) -> list[np.ndarray]:
     """For each fault channel, the measurement rows whose declaration declares it (bool (m,))."""
-    meas = scenario.measurements
+    meas = scenario.observed
     sensor_targets = {f.target for f in scenario.sensor_faults}
     rows = []
     for f in scenario.faults:
@@ -74,7 +75,7 @@ class GatedKF:
         self.gate = scenario.settings.gating.gate_sigma
         self.hold_s = scenario.settings.gating.hold_s
         self._rows = fault_rows(scenario)
-        m = len(scenario.measurements)
+        m = len(scenario.observed)
         self.test_ratio = np.zeros(m)              # last frame's ratio per row (NaN: no data)
         self.declared = np.zeros(m, bool)           # row declared faulty
         self.rejected = np.zeros(m, bool)           # row rejected from fusion this frame
@@ -95,7 +96,11 @@ class GatedKF:
             self._H = np.asarray(meas.H, float)
             self._r_diag = np.diagonal(np.asarray(meas.R, float)).copy()
 
+    rows = NO_SPLIT
+    """The estimator's rows into observed rows and inputs (`inputs.RowSplit`; set by the factory)."""
+
     def step(self, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray) -> StepOutput:
+        y, mask, u = self.rows.split(y, mask, u)
         mask = np.asarray(mask, bool)
         kf = self.kf
         split, xp = self._split, self.restores_state

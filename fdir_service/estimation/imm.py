@@ -16,6 +16,7 @@ import sys
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
+from fdir_service.estimation.inputs import NO_SPLIT
 from fdir_service.estimation.kalman import KalmanFilter
 from fdir_service.estimation.layout import N_AIRFRAME
 
@@ -45,7 +46,11 @@ class IMMKalman:
             d = f.x - self.x
             self.P += mu * (np.outer(d, d) + f.P)
 
+    rows = NO_SPLIT
+    """The estimator's rows into observed rows and inputs (`inputs.RowSplit`; set by the factory)."""
+
     def step(self, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray) -> StepOutput:
+        y, mask, u = self.rows.split(y, mask, u)
         # mixing (Alg. 2.11) and mode-matched prediction
         xs = [f.x for f in self.filters]
         Ps = [f.P for f in self.filters]

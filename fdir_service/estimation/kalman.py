@@ -17,6 +17,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from fdir_service.estimation.base import StepOutput
+from fdir_service.estimation.inputs import NO_SPLIT
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.process import LinearProcess
@@ -112,7 +113,11 @@ class KalmanFilter:
                           fault_estimate=f.copy(), fault_probability=prob, n_eff=self.n_eff,
                           resampled=False)
 
+    rows = NO_SPLIT
+    """The estimator's rows into observed rows and inputs (`inputs.RowSplit`; set by the factory)."""
+
     def step(self, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray) -> StepOutput:
+        y, mask, u = self.rows.split(y, mask, u)
         self.predict(u)
         self.update(y, mask)
         return self.output(t)

@@ -32,9 +32,9 @@ class FaultLayout:
 
     @classmethod
     def from_estimator(cls, config: EstimatorConfig) -> FaultLayout:
-        """The layout of an estimator's monitored faults over its measurement rows."""
+        """The layout of an estimator's monitored faults over its observed rows (IMU rows are inputs)."""
         return cls(tuple(f.id for f in config.faults), tuple(f.kind for f in config.faults),
-                   tuple(f.target for f in config.faults), tuple(config.measurements))
+                   tuple(f.target for f in config.faults), tuple(config.observed))
 
     @property
     def nf(self) -> int:

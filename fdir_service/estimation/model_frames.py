@@ -38,7 +38,7 @@ def model_frames(estimator: EstimatorConfig, steps: int, rng: np.random.Generato
     """
     lm = estimator_linear_model(estimator)
     layout = FaultLayout.from_estimator(estimator)
-    meas = MeasurementModel.build(layout, estimator.filter_sigma())
+    meas = MeasurementModel.build(layout, estimator.observed_sigma())
     q = np.asarray(estimator.state_process_std())
     K, dt = int(steps), estimator.dt_s
     t = dt * np.arange(1, K + 1)

@@ -27,6 +27,7 @@ import numpy as np
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.correction import row_loglik, weighted_cov, weighted_mean_cov
 from fdir_service.estimation.frame import Frame
+from fdir_service.estimation.inputs import NO_SPLIT
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.slots import (
@@ -96,8 +97,12 @@ class ParticleFilter:
         return bool(getattr(getattr(self.parts.jump, "transition", None), "adaptive", False))
 
     # ------------------------------------------------------------------ the step
+    rows = NO_SPLIT
+    """The estimator's rows into observed rows and inputs (`inputs.RowSplit`; set by the factory)."""
+
     def step(self, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray) -> StepOutput:
         p, rng = self.parts, self.rng
+        y, mask, u = self.rows.split(y, mask, u)
         frame = Frame.of(t, y, mask, u, self.meas)
         X = p.predict.predict(self.X, self.modes, frame.u, rng)
         move_lw = p.jump.jump(X, self.modes, self.w, frame, rng)

@@ -42,3 +42,26 @@ class ModeGatedPredict(GaussianPredict):
         if rows.size:
             X[N_AIRFRAME + rows, cols] += self.q_std[N_AIRFRAME + rows, 0] * rng.standard_normal(rows.size)
         return X
+
+
+class DriftPredict(GaussianPredict):
+    """As `GaussianPredict`, but a fault entry's noise depends on its mode (parts.mode0 = "drift"):
+    q_std in mode 1 (a fault evolving), drift_std (nf,) per-step std in mode 0 (the sensor's slow
+    fault-free error: a bias walk that no jump explains). Fault entries stay within +-bound (nf,)
+    (the amplitude prior's support, faults.amplitude_max; inf: unbounded), so an unobservable fault
+    cannot wander off and drag the airframe state with it."""
+
+    def __init__(self, process, q_std: np.ndarray, drift_std: np.ndarray, bound: np.ndarray) -> None:
+        super().__init__(process, q_std)
+        self.drift_std = np.asarray(drift_std, dtype=float).reshape(-1, 1)
+        self.bound = np.asarray(bound, dtype=float).reshape(-1, 1)
+
+    def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
+                rng: np.random.Generator) -> np.ndarray:
+        X = self.process.propagate(X, u)
+        noise = rng.standard_normal(X.shape)
+        noise[:N_AIRFRAME] *= self.q_std[:N_AIRFRAME]
+        noise[N_AIRFRAME:] *= np.where(modes, self.q_std[N_AIRFRAME:], self.drift_std)
+        X += noise
+        np.clip(X[N_AIRFRAME:], -self.bound, self.bound, out=X[N_AIRFRAME:])
+        return X

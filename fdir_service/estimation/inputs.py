@@ -1,0 +1,67 @@
+"""The estimator's rows split into what a filter observes and what it takes as input.
+
+An estimator may list accelerometer rows (`estimator_config.IMU_ROWS`: ax, az, body-axis specific
+force, m/s^2). No filter observes them: a kinematic process model integrates them like an input
+(SPEC section 2's velocity equations with the aerodynamic forces replaced by the measured ones).
+`RowSplit.split(y, mask, u)` turns a frame over all rows (m,) into the observed rows (m_obs,) and
+the input [delta_e, delta_t] (2,), extended by the accelerometer (+2) when the process integrates
+it. A sample that did not arrive holds the last one (the trim's specific force before the first).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fdir_service.estimator_config import IMU_ROWS, EstimatorConfig
+
+G = 9.80665
+"""Standard gravity (m/s^2)."""
+
+
+def trim_specific_force(z_trim: np.ndarray) -> np.ndarray:
+    """[a_x, a_z] (2,) m/s^2 of steady flight at the airframe state z_trim (5,): gravity's reaction."""
+    theta = float(z_trim[3])
+    return np.array([G * np.sin(theta), -G * np.cos(theta)])
+
+
+class RowSplit:
+    """Observed rows and IMU inputs of an estimator's frames (module docstring).
+
+    observed (m_obs,) and imu (k,) are row indices into the estimator's rows; imu_as_input: append
+    the accelerometer to u (a kinematic process model), else the IMU rows are dropped.
+    """
+
+    def __init__(self, observed: np.ndarray, imu: np.ndarray, imu_as_input: bool,
+                 hold: np.ndarray | None = None) -> None:
+        self.observed = np.asarray(observed, dtype=int)
+        self.imu = np.asarray(imu, dtype=int)
+        self.imu_as_input = bool(imu_as_input)
+        self.identity = self.imu.size == 0
+        self.hold = np.zeros(self.imu.size) if hold is None else np.asarray(hold, dtype=float).copy()
+
+    @classmethod
+    def of(cls, estimator: EstimatorConfig, imu_as_input: bool, z_trim: np.ndarray) -> RowSplit:
+        """The split of `estimator`'s rows; the held IMU starts at the trim's specific force."""
+        rows = estimator.measurements
+        imu = [rows.index(r) for r in IMU_ROWS if r in rows]        # ax first, then az
+        observed = [j for j, r in enumerate(rows) if r not in IMU_ROWS]
+        trim = dict(zip(IMU_ROWS, trim_specific_force(z_trim), strict=True))
+        return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]))
+
+    def split(self, y: np.ndarray, mask: np.ndarray, u: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(y_obs (m_obs,), mask_obs (m_obs,), u (2,) or (2 + k,)) of a frame over all rows."""
+        if self.identity:
+            return y, mask, u
+        y = np.asarray(y, dtype=float)
+        mask = np.asarray(mask, dtype=bool)
+        fresh = mask[self.imu] & np.isfinite(y[self.imu])
+        self.hold[fresh] = y[self.imu][fresh]
+        u = np.asarray(u, dtype=float)[:2]
+        if self.imu_as_input:
+            u = np.concatenate([u, self.hold])
+        return y[self.observed], mask[self.observed], u
+
+
+NO_SPLIT = RowSplit(np.zeros(0, dtype=int), np.zeros(0, dtype=int), False)
+"""The split of an estimator without IMU rows: frames pass through unchanged (shared, stateless)."""
