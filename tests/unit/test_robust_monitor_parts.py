@@ -1,0 +1,170 @@
+"""The robust monitor's parts on their own: the kinematic process model, the IMU rows as inputs,
+sensor drift in mode 0 with bounded faults, and the estimator file that assembles them."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fdir_service.errors import ConfigError
+from fdir_service.estimation.factory import build_filter
+from fdir_service.estimation.inputs import G, RowSplit, trim_specific_force
+from fdir_service.estimation.kinematic import KinematicProcess
+from fdir_service.estimation.layout import FaultLayout
+from fdir_service.estimation.predict import DriftPredict
+from fdir_service.estimator_config import estimator_document, load_estimator, parse_estimator
+from sim_bridge.scenario import load_scenario
+from sim_bridge.simulate import run
+
+LAYOUT = FaultLayout(("theta",), ("sensor",), ("theta",), ("gnss_alt", "theta"))
+
+
+@pytest.fixture(scope="module")
+def robust():
+    return load_estimator("aerosonde-robust")
+
+
+@pytest.fixture(scope="module")
+def turbulent_flight():
+    """30 s of a fault-free flight in moderate Dryden turbulence (truth and sensor rows)."""
+    sc = load_scenario("real-turbulence-faultfree")
+    return sc, run(sc, 5, seconds=30.0)
+
+
+def test_kinematic_model_predicts_the_truth_in_turbulence_to_the_accelerometer_noise(turbulent_flight):
+    sc, tr = turbulent_flight
+    names = sc.sensors.measurements
+    proc = KinematicProcess(sc.dt_s, FaultLayout((), (), (), ()))
+    X = tr.z[:-1].T                                     # (5, K-1): every frame's truth as one cloud
+    a = tr.y[1:, [names.index("ax"), names.index("az")]]
+    err = np.empty((5, X.shape[1]))
+    for k in range(X.shape[1]):                         # one input per frame (the accelerometer's)
+        err[:, k] = proc.propagate(X[:, k], np.r_[0.0, 0.0, a[k]]) - tr.z[k + 1]
+    dt = sc.dt_s
+    # velocity error per frame = dt x (accelerometer noise 0.2 + gust-rate lag): well under 0.05 m/s
+    assert np.std(err[1]) < 0.03 and np.std(err[2]) < 0.05
+    assert np.std(err[3]) < 1e-3     # theta' = q with q held over the frame (the gusts move q: process noise)
+    assert np.std(err[0]) < 0.01                        # the climb rate
+    # while the airframe's own aerodynamic model would be off by the gusts (w' std ~ g's order)
+    assert np.std(np.diff(tr.z[:, 2]) / dt) > 1.0
+
+
+def test_kinematic_model_holds_level_flight_on_the_trim_specific_force():
+    z = np.array([-500.0, 39.9, 1.9, 0.0476, 0.0])
+    proc = KinematicProcess(0.05, FaultLayout((), (), (), ()))
+    a = trim_specific_force(z)
+    assert a[1] == pytest.approx(-G * np.cos(z[3]))
+    nxt = proc.propagate(z, np.r_[0.0, 0.5, a])
+    # u, w, theta, q unchanged; the altitude moves by the (tiny) climb rate of this state
+    np.testing.assert_allclose(nxt[1:], z[1:], atol=1e-12)
+    assert nxt[0] - z[0] == pytest.approx(0.05 * (z[2] * np.cos(z[3]) - z[1] * np.sin(z[3])))
+
+
+def test_kinematic_model_sees_no_actuator():
+    proc = KinematicProcess(0.05, FaultLayout(("de",), ("actuator",), ("delta_e",), ("q",)))
+    assert proc.B_actuator.shape == (5, 1) and not proc.B_actuator.any()
+
+
+def test_row_split_takes_the_accelerometer_out_of_the_rows_and_holds_it(robust):
+    split = RowSplit.of(robust, True, np.array([-500.0, 40.0, 2.0, 0.05, 0.0]))
+    rows = robust.measurements
+    y = np.arange(len(rows), dtype=float)
+    mask = np.ones(len(rows), dtype=bool)
+    yo, mo, u = split.split(y, mask, np.array([0.1, 0.6]))
+    assert list(yo) == [rows.index(r) for r in robust.observed]
+    assert mo.all() and list(u) == [0.1, 0.6, rows.index("ax"), rows.index("az")]
+    mask[rows.index("az")] = False                      # no new az: the last one is held
+    y2 = y + 100.0
+    _, _, u2 = split.split(y2, mask, np.array([0.1, 0.6]))
+    assert u2[2] == rows.index("ax") + 100.0 and u2[3] == rows.index("az")
+
+
+def test_row_split_drops_the_accelerometer_for_filters_that_do_not_integrate_it(robust):
+    split = RowSplit.of(robust, False, np.zeros(5))
+    y = np.ones(len(robust.measurements))
+    yo, mo, u = split.split(y, y > 0, np.array([0.0, 0.5]))
+    assert yo.size == len(robust.observed) == 6 and u.size == 2
+
+
+def test_row_split_starts_on_the_trim_specific_force(robust):
+    split = RowSplit.of(robust, True, np.array([-500.0, 40.0, 2.0, 0.05, 0.0]))
+    np.testing.assert_allclose(split.hold, [G * np.sin(0.05), -G * np.cos(0.05)])
+
+
+class Still:
+    B_actuator = np.zeros((5, 1))
+
+    def propagate(self, X, u):
+        return X.copy()
+
+
+def test_drift_predict_gives_mode0_the_drift_noise_and_mode1_the_fault_noise():
+    n, N = 6, 200_000
+    part = DriftPredict(Still(), np.r_[np.zeros(5), 0.01], np.array([0.001]), np.array([np.inf]))
+    modes = np.zeros((1, N), dtype=bool)
+    modes[0, N // 2:] = True
+    X = part.predict(np.zeros((n, N)), modes, np.zeros(4), np.random.default_rng(0))
+    assert np.std(X[5, : N // 2]) == pytest.approx(0.001, rel=0.02)
+    assert np.std(X[5, N // 2:]) == pytest.approx(0.01, rel=0.02)
+    assert not X[:5].any()
+
+
+def test_drift_predict_keeps_faults_within_their_prior():
+    part = DriftPredict(Still(), np.r_[np.zeros(5), 1.0], np.array([1.0]), np.array([0.3]))
+    X = part.predict(np.zeros((6, 10_000)), np.ones((1, 10_000), bool), np.zeros(4),
+                     np.random.default_rng(1))
+    assert np.abs(X[5]).max() == pytest.approx(0.3)
+
+
+def test_robust_estimator_builds_a_kinematic_filter_with_drift(robust):
+    f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
+    assert f.parts.predict.process.kind == "kinematic"
+    assert isinstance(f.parts.predict, DriftPredict)
+    assert f.meas.names == robust.observed and "ax" not in f.meas.names
+    rows = len(robust.measurements)
+    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79])
+    out = f.step(0.05, y, np.ones(rows, bool), np.array([-0.08, 0.5]))
+    assert np.isfinite(out.x_mean).all() and out.fault_probability.max() < 0.5
+
+
+@pytest.mark.parametrize("name", ["KF", "IMM-KF", "EKF-GATE", "RPF"])
+def test_every_filter_runs_on_an_estimator_with_accelerometer_rows(robust, name):
+    f = build_filter(name, robust, np.random.default_rng(0), particles=50)
+    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79])
+    out = f.step(0.05, y, np.ones(8, bool), np.array([-0.08, 0.5]))
+    assert np.isfinite(out.x_mean).all() and np.isfinite(out.fault_probability).all()
+
+
+def _robust_doc():
+    doc, _ = estimator_document("aerosonde-robust")
+    return doc
+
+
+def test_kinematic_model_needs_the_accelerometer_rows():
+    doc = _robust_doc()
+    doc["measurements"]["rows"] = ["gnss_alt", "baro_alt", "u", "w", "theta", "q"]
+    with pytest.raises(ConfigError, match="measurements.rows must list ax, az"):
+        parse_estimator(doc)
+
+
+def test_kinematic_model_refuses_actuator_faults():
+    doc = _robust_doc()
+    doc["faults"].append({"id": "de", "target": "delta_e", "unit": "deg", "sigma_f": 0.001})
+    with pytest.raises(ConfigError, match="cannot see actuator faults"):
+        parse_estimator(doc)
+
+
+def test_a_fault_cannot_target_an_accelerometer_row():
+    doc = _robust_doc()
+    doc["faults"][0]["target"] = "ax"
+    with pytest.raises(ConfigError, match="target"):
+        parse_estimator(doc)
+
+
+def test_drift_sigma_is_read_per_fault_in_si(robust):
+    q = next(f for f in robust.faults if f.id == "q")
+    assert q.drift_sigma == pytest.approx(0.0002)
+    assert dataclasses.replace(q, drift_sigma=0.0).drift_sigma == 0.0
+    assert robust.settings.mode0 == "drift" and robust.settings.process_model == "kinematic"
