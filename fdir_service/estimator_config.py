@@ -117,6 +117,8 @@ class FilterSettings:
     jitter: str = "per_mode"             # "global" (one kernel) | "per_mode"
     adaptive_transition: str = "proposal"  # "thesis" (eq. 6.1) | "proposal" (importance-weighted)
     actuator_sentinel: str = "consistent"  # "thesis" | "consistent" (B_a dF moves the state)
+    rate_sentinel: str = "row"           # gyro fault amplitude: "row" (eq. 4.16) | "window" (theta slope)
+    rate_window_s: float = 1.0           # the window of rate_sentinel = "window" (s)
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -293,7 +295,7 @@ _CHOICES = {
     "sigma_x_basis": ("step", "sqrt_second"), "resampler": ("multinomial", "systematic"),
     "mode0": ("forced_zero", "reset_on_exit", "drift"), "sentinel_weighting": ("thesis", "prior"),
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
-    "actuator_sentinel": ("thesis", "consistent"),
+    "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
 
@@ -312,6 +314,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         pi10=f.take("pi10", "number", d.pi10, check=UNIT_INTERVAL),
         saddlepoint_window=f.take("saddlepoint_window", "integer", d.saddlepoint_window,
                                   check=POSITIVE),
+        rate_window_s=f.take("rate_window_s", "number", d.rate_window_s, check=POSITIVE),
         imm=_imm(f, faults), gating=_gating(f), **words)
     f.finish()
     return s

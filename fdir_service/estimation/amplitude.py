@@ -75,6 +75,10 @@ class AmplitudePredictor:
         self._cache[key] = out
         return out
 
+    def observe(self, frame) -> None:
+        """Learn from the frame before `predict` (nothing here; `rate_window.RateWindowAmplitude`
+        keeps a window of it)."""
+
     def predict(self, X: np.ndarray, innovation: np.ndarray, mask: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
         """A (nf, N) for the cloud X (n, N) and innovations (m_rows, N); and available (nf,)."""

@@ -30,6 +30,7 @@ from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.particle import ParticleFilter, Parts
 from fdir_service.estimation.predict import DriftPredict, GaussianPredict, ModeGatedPredict
 from fdir_service.estimation.process import LinearProcess, NonlinearProcess
+from fdir_service.estimation.rate_window import RateWindowAmplitude
 from fdir_service.estimation.recipes import Recipe, recipe
 from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter, h_opt
 from fdir_service.estimation.resample import BelowEffectiveSize, EveryStep, resampler
@@ -151,12 +152,44 @@ def _transition(rec: Recipe, estimator: EstimatorConfig, amp: AmplitudePredictor
                               pi10=pi10, proposal=mode == "proposal")
 
 
+def _gyro_fault(estimator: EstimatorConfig, layout: FaultLayout) -> int | None:
+    """The gyro fault whose amplitude comes from the attitude window (parts.rate_sentinel =
+    "window": a sensor fault on q, theta observed), else None."""
+    if estimator.settings.rate_sentinel != "window" or "theta" not in layout.measurements:
+        return None
+    for j, (kind, target) in enumerate(zip(layout.kinds, layout.targets, strict=True)):
+        if kind == "sensor" and target == "q":
+            return j
+    return None
+
+
+def _amplitude(estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel, process,
+               q_std: np.ndarray) -> AmplitudePredictor:
+    """The jump's amplitude predictor: each fault's own row, the gyro's from a window if asked."""
+    gyro = _gyro_fault(estimator, layout)
+    if gyro is None:
+        return AmplitudePredictor(layout, meas, process.B_actuator, q_std[:N_AIRFRAME])
+    frames = max(3, int(round(estimator.settings.rate_window_s / estimator.dt_s)))
+    rows = layout.measurements
+    return RateWindowAmplitude(layout, meas, process.B_actuator, q_std[:N_AIRFRAME], gyro,
+                               rows.index("theta"), rows.index("q"), frames)
+
+
 def _carry(estimator: EstimatorConfig, layout: FaultLayout, process):
-    """ActuatorCarry for parts.actuator_sentinel = "consistent" (and actuator faults), else NoCarry."""
-    act = np.flatnonzero(layout.actuator_input >= 0)
-    if estimator.settings.actuator_sentinel != "consistent" or act.size == 0:
+    """The state a sentinel moves with its fault: an actuator's one-frame response
+    (parts.actuator_sentinel = "consistent"), a windowed gyro fault's -e_q; else NoCarry."""
+    cols, B = [], []
+    if estimator.settings.actuator_sentinel == "consistent":
+        for j in np.flatnonzero(layout.actuator_input >= 0).tolist():
+            cols.append(j)
+            B.append(np.asarray(process.B_actuator, dtype=float)[:, j])
+    gyro = _gyro_fault(estimator, layout)
+    if gyro is not None:
+        cols.append(gyro)
+        B.append(-np.eye(N_AIRFRAME)[4])
+    if not cols:
         return NoCarry()
-    return ActuatorCarry(act, np.asarray(process.B_actuator, dtype=float)[:, act])
+    return ActuatorCarry(np.array(cols), np.array(B).T)
 
 
 def _sentinel_weighting(estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
@@ -210,7 +243,7 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
     """The parts of a particle filter of recipe `rec` (and its amplitude predictor)."""
     est = estimator.settings
     process = _process(estimator, layout)
-    amp = AmplitudePredictor(layout, meas, process.B_actuator, q_std[:N_AIRFRAME])
+    amp = _amplitude(estimator, layout, meas, process, q_std)
     jump, sentinels = _jump_parts(rec, estimator, layout, meas, process, amp, roc)
     every = rec.resample == "every_step"
     return Parts(

@@ -176,6 +176,7 @@ class MarkovJump:
         """Jump the modes and fault entries of X in place; returns the (N,) log-weight term of a
         proposal transition (None for the model's own matrix)."""
         innov = frame.yv[:, None] - frame.mm.H @ X
+        self.amplitude.observe(frame)
         A, avail = self.amplitude.predict(X, innov, frame.mask)
         F = X[N_AIRFRAME:]
         self.transition.observe(A, F, modes, w)

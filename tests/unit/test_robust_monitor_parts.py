@@ -168,3 +168,30 @@ def test_drift_sigma_is_read_per_fault_in_si(robust):
     assert q.drift_sigma == pytest.approx(0.0002)
     assert dataclasses.replace(q, drift_sigma=0.0).drift_sigma == 0.0
     assert robust.settings.mode0 == "drift" and robust.settings.process_model == "kinematic"
+
+
+def test_rate_window_finds_a_gyro_bias_from_the_attitude_slope():
+    from fdir_service.estimation.rate_window import RateWindow
+
+    rng = np.random.default_rng(3)
+    win = RateWindow(40, 20)
+    assert win.bias() is None
+    for k in range(40):                                 # 2 s at 20 Hz: q = 0.1 rad/s, gyro +0.03 bias
+        t = 0.05 * k
+        win.add(t, 0.1 * t + 0.01 * rng.standard_normal(), 0.1 + 0.03 + 0.003 * rng.standard_normal())
+    # std of the estimate: sqrt(0.003^2/40 + 12 0.01^2 / (0.05^2 40 (40^2 - 1))) = 0.0028 rad/s
+    assert win.bias() == pytest.approx(0.03, abs=3 * 0.0028)
+
+
+def test_robust_estimator_proposes_gyro_sentinels_from_the_window_and_moves_their_q(robust):
+    from fdir_service.estimation.jump import ActuatorCarry
+    from fdir_service.estimation.rate_window import RateWindowAmplitude
+
+    f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
+    amp, carry = f.parts.jump.amplitude, f.parts.jump.carry
+    assert isinstance(amp, RateWindowAmplitude) and amp.window.samples.maxlen == 40
+    assert isinstance(carry, ActuatorCarry)
+    j = robust.observed.index("q")
+    gyro = [k for k, x in enumerate(robust.faults) if x.target == "q"][0]
+    assert j >= 0 and list(carry.columns) == [gyro]
+    np.testing.assert_array_equal(carry.B[:, 0], [0, 0, 0, 0, -1])   # f_q up by dA: q down by dA
