@@ -135,10 +135,13 @@ class Likelihood:
 
 class KalmanCorrection:
     """Weights N(y - H x_i; 0, S) and x_i += K (y - H x_i) in place (eq. 5.3-5.9); `pin(X, modes)`
-    puts pinned fault entries back afterwards (the jump's `pin`)."""
+    puts pinned fault entries back afterwards (the jump's `pin`). hold_mode0_faults (parts.mode0 =
+    "drift"): a mode-0 fault entry is not corrected (its drift is slow: the weights select it), so
+    the cloud's gain cannot carry a mode-1 particle's fault into the fault-free mode."""
 
-    def __init__(self, pin) -> None:
+    def __init__(self, pin, hold_mode0_faults: bool = False) -> None:
         self.pin = pin
+        self.hold_mode0_faults = bool(hold_mode0_faults)
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         mm = frame.mm
@@ -148,6 +151,9 @@ class KalmanCorrection:
         K, S_inv = kalman_gain(P, mm.H, mm.R)
         innov = frame.yv[:, None] - mm.H @ X
         ll = gaussian_loglik(innov, S_inv)
-        X += K @ innov
+        dX = K @ innov
+        if self.hold_mode0_faults:
+            dX[X.shape[0] - modes.shape[0]:] *= modes
+        X += dX
         self.pin(X, modes)
         return ll

@@ -249,7 +249,8 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
     return Parts(
         predict=_predictor(rec, estimator, process, q_std),
         jump=jump, sentinel_weighting=sentinels,
-        correction=KalmanCorrection(jump.pin) if rec.correction == "kalman" else Likelihood(),
+        correction=(KalmanCorrection(jump.pin, rec.has_modes and est.mode0 == "drift")
+                    if rec.correction == "kalman" else Likelihood()),
         resample_due=EveryStep() if every else BelowEffectiveSize(est.resample_threshold),
         resampler=resampler("systematic" if every else est.resampler),
         regulariser=_regulariser(rec, estimator, amp, _bandwidth(estimator, layout.n, N)),
