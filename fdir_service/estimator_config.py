@@ -39,7 +39,11 @@ OBSERVED_ROWS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q")
 IMU_ROWS = ("ax", "az")
 """Accelerometer rows: body-axis specific force, forward and down (m/s^2). The kinematic process
 model takes them as inputs (parts.process_model = "kinematic"); no filter observes them."""
-MEASUREMENTS = OBSERVED_ROWS + IMU_ROWS
+AIR_ROWS = ("airspeed",)
+"""The pitot's airspeed (m/s): an input of the kinematic model's pitching moment (dynamic pressure)."""
+INPUT_ROWS = IMU_ROWS + AIR_ROWS
+"""Rows a process model takes as inputs, in the order they extend the input vector."""
+MEASUREMENTS = OBSERVED_ROWS + INPUT_ROWS
 """Measurement rows an estimator may list."""
 ACTUATORS = ("delta_e", "delta_t")
 """Inputs a fault may act on: elevator (rad) and throttle (0..1)."""
@@ -158,21 +162,17 @@ class EstimatorConfig:
 
     @property
     def observed(self) -> tuple[str, ...]:
-        """The rows the filters observe: `measurements` without the IMU rows (m_obs,)."""
-        return tuple(r for r in self.measurements if r not in IMU_ROWS)
+        """The rows the filters observe: `measurements` without the input rows (m_obs,)."""
+        return tuple(r for r in self.measurements if r not in INPUT_ROWS)
 
     @property
-    def imu_rows(self) -> tuple[str, ...]:
-        """The IMU rows listed (inputs of a kinematic process model), in row order."""
-        return tuple(r for r in self.measurements if r in IMU_ROWS)
+    def input_rows(self) -> tuple[str, ...]:
+        """The input rows listed (a kinematic process model's), in `INPUT_ROWS` order."""
+        return tuple(r for r in INPUT_ROWS if r in self.measurements)
 
     def observed_sigma(self) -> list[float]:
         """Measurement noise std (m_obs,) of the observed rows (SI)."""
-        return [s for r, s in zip(self.measurements, self.sigma, strict=True) if r not in IMU_ROWS]
-
-    def imu_sigma(self) -> dict[str, float]:
-        """Accelerometer noise std (m/s^2) per IMU row listed."""
-        return {r: s for r, s in zip(self.measurements, self.sigma, strict=True) if r in IMU_ROWS}
+        return [s for r, s in zip(self.measurements, self.sigma, strict=True) if r not in INPUT_ROWS]
 
     def state_process_std(self) -> tuple[float, ...]:
         """Per-step std (5,) of the airframe-state process noise (SI)."""
@@ -212,7 +212,7 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
     if not fid.isidentifier() or len(fid) > 7:
         raise ConfigError(f"{t.key('id')}: expected a short identifier (<= 7 chars, for "
                           f"MAVLink names like pfa_<id>), got {fid!r}")
-    target = t.take("target", "string", choices=tuple(r for r in rows if r not in IMU_ROWS) + ACTUATORS)
+    target = t.take("target", "string", choices=tuple(r for r in rows if r not in INPUT_ROWS) + ACTUATORS)
     unit = t.take("unit", "string", choices=tuple(UNITS))
     amax = t.take("amplitude_max", "number", None, check=POSITIVE)
     spec = FaultSpec(
@@ -338,10 +338,15 @@ def _check_kinematic(settings: FilterSettings, faults: tuple[FaultSpec, ...],
     if missing:
         raise ConfigError(f"parts.process_model = \"kinematic\" integrates the accelerometer: "
                           f"measurements.rows must list {', '.join(IMU_ROWS)}; missing {missing}")
-    actuators = [f.id for f in faults if f.kind == "actuator"]
-    if actuators:
-        raise ConfigError(f"parts.process_model = \"kinematic\" has no aerodynamics, so it cannot see "
-                          f"actuator faults {actuators}; watch them with process_model = \"nonlinear\"")
+    unseen = [f.id for f in faults if f.kind == "actuator" and f.target != "delta_e"]
+    if unseen:
+        raise ConfigError(f"parts.process_model = \"kinematic\" models the pitching moment only: it cannot "
+                          f"see actuator faults {unseen}; watch them with process_model = \"nonlinear\"")
+    elevator = [f.id for f in faults if f.target == "delta_e"]
+    if elevator and "airspeed" not in rows:
+        raise ConfigError(f"parts.process_model = \"kinematic\" sees the elevator {elevator} through the "
+                          f"pitching moment, which needs the dynamic pressure: measurements.rows must list "
+                          f"airspeed")
 
 
 def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> EstimatorConfig:

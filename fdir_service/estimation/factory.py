@@ -24,7 +24,7 @@ from fdir_service.estimation.imm import IMMKalman
 from fdir_service.estimation.inputs import RowSplit
 from fdir_service.estimation.jump import ActuatorCarry, FixedTransition, MarkovJump, NoCarry, NoJump
 from fdir_service.estimation.kalman import KalmanFilter
-from fdir_service.estimation.kinematic import KinematicProcess
+from fdir_service.estimation.kinematic import KinematicProcess, PitchMoment
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.particle import ParticleFilter, Parts
@@ -124,7 +124,8 @@ def build_imm(scenario: EstimatorConfig, x0: np.ndarray | None = None,
 
 def _process(estimator: EstimatorConfig, layout: FaultLayout):
     if estimator.settings.process_model == "kinematic":
-        return KinematicProcess(estimator.dt_s, layout)
+        moment = PitchMoment(_airframe(estimator.airframe)) if "airspeed" in estimator.measurements else None
+        return KinematicProcess(estimator.dt_s, layout, moment, estimator.operating_point.airspeed_mps)
     lm = estimator_linear_model(estimator)
     if estimator.settings.process_model == "linear":
         return LinearProcess(lm, layout)

@@ -1,18 +1,20 @@
 """The estimator's rows split into what a filter observes and what it takes as input.
 
-An estimator may list accelerometer rows (`estimator_config.IMU_ROWS`: ax, az, body-axis specific
-force, m/s^2). No filter observes them: a kinematic process model integrates them like an input
-(SPEC section 2's velocity equations with the aerodynamic forces replaced by the measured ones).
-`RowSplit.split(y, mask, u)` turns a frame over all rows (m,) into the observed rows (m_obs,) and
-the input [delta_e, delta_t] (2,), extended by the accelerometer (+2) when the process integrates
-it. A sample that did not arrive holds the last one (the trim's specific force before the first).
+An estimator may list input rows (`estimator_config.INPUT_ROWS`): the accelerometer (ax, az,
+body-axis specific force, m/s^2) and the pitot's airspeed (m/s). No filter observes them: a
+kinematic process model integrates the accelerometer like an input (SPEC section 2's velocity
+equations with the aerodynamic forces replaced by the measured ones) and takes the dynamic pressure
+of its pitching moment from the airspeed. `RowSplit.split(y, mask, u)` turns a frame over all rows
+(m,) into the observed rows (m_obs,) and the input [delta_e, delta_t] (2,), extended by the input
+rows (+k, `INPUT_ROWS` order) when the process takes them. A sample that did not arrive holds the
+last one (before the first: the trim's specific force and airspeed).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from fdir_service.estimator_config import IMU_ROWS, EstimatorConfig
+from fdir_service.estimator_config import INPUT_ROWS, EstimatorConfig
 
 G = 9.80665
 """Standard gravity (m/s^2)."""
@@ -24,11 +26,17 @@ def trim_specific_force(z_trim: np.ndarray) -> np.ndarray:
     return np.array([G * np.sin(theta), -G * np.cos(theta)])
 
 
+def trim_inputs(z_trim: np.ndarray) -> dict[str, float]:
+    """Each input row's value in steady flight in still air at z_trim (5,)."""
+    ax, az = trim_specific_force(z_trim)
+    return {"ax": float(ax), "az": float(az), "airspeed": float(np.hypot(z_trim[1], z_trim[2]))}
+
+
 class RowSplit:
     """Observed rows and IMU inputs of an estimator's frames (module docstring).
 
-    observed (m_obs,) and imu (k,) are row indices into the estimator's rows; imu_as_input: append
-    the accelerometer to u (a kinematic process model), else the IMU rows are dropped.
+    observed (m_obs,) and imu (k,) are row indices into the estimator's rows (imu: the input rows);
+    imu_as_input: append them to u (a kinematic process model), else they are dropped.
     """
 
     def __init__(self, observed: np.ndarray, imu: np.ndarray, imu_as_input: bool,
@@ -43,9 +51,9 @@ class RowSplit:
     def of(cls, estimator: EstimatorConfig, imu_as_input: bool, z_trim: np.ndarray) -> RowSplit:
         """The split of `estimator`'s rows; the held IMU starts at the trim's specific force."""
         rows = estimator.measurements
-        imu = [rows.index(r) for r in IMU_ROWS if r in rows]        # ax first, then az
-        observed = [j for j, r in enumerate(rows) if r not in IMU_ROWS]
-        trim = dict(zip(IMU_ROWS, trim_specific_force(z_trim), strict=True))
+        imu = [rows.index(r) for r in INPUT_ROWS if r in rows]       # INPUT_ROWS order
+        observed = [j for j, r in enumerate(rows) if r not in INPUT_ROWS]
+        trim = trim_inputs(z_trim)
         return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]))
 
     def split(self, y: np.ndarray, mask: np.ndarray, u: np.ndarray

@@ -10,29 +10,81 @@ ArduPilot's EKF3 are IMU-driven):
 
 u, w are the body-axis velocities over the ground (what GNSS-aided ODOMETRY reports), so wind and
 gusts appear only through the measured specific force: this model has nothing to mis-model in
-moving air or on another airframe. It sees no actuator (an elevator acts on q through the
-pitching moment, which this model leaves out): `B_actuator` is zero. One step over dt with the
-attitude at mid-step (theta + q dt / 2) in the gravity and climb terms.
+moving air or on another airframe. One step over dt with the attitude at mid-step
+(theta + q dt / 2) in the gravity and climb terms.
+
+An elevator acts on q only through the pitching moment. With a `PitchMoment` the q row becomes
+
+    q' = (qbar S c / J_y) [C_m0 + C_ma alpha + C_mq c q / (2 V) + C_mde (delta_e + f_de)]
+
+with V the pitot's airspeed, qbar = rho V^2 / 2, and the angle of attack read from the lift the
+accelerometer measures, alpha = (-a_z m / (qbar S) - C_L0 - C_Lq c q / (2 V) - C_Lde delta_e) / C_La
+(SPEC section 2's coefficients, linear below stall; drag's share of a_z neglected): the air's
+own angle, gusts included, with no wind state. What the airframe file gets wrong of this balance
+is slow and acts like an elevator offset: the elevator fault's mode-0 drift carries it
+(parts.mode0 = "drift"); a jump of it is the fault.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from fdir_service.airframe.params import AirframeParams
 from fdir_service.estimation.inputs import G
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 
 
+class PitchMoment:
+    """q' (rad/s^2) from the pitching moment of `params` (module docstring), vectorised."""
+
+    def __init__(self, params: AirframeParams) -> None:
+        p = params
+        self.p = p
+        self.elevator_gain = p.C_mde - p.C_ma * p.C_Lde / p.C_La
+        """dC_m / d delta_e with alpha read from the measured lift (1/rad)."""
+
+    def scale(self, V: float) -> float:
+        """qbar S c / J_y (rad/s^2 per unit C_m) at airspeed V (m/s)."""
+        p = self.p
+        return 0.5 * p.rho * V * V * p.S * p.c / p.Jy
+
+    def qdot(self, q: np.ndarray, de, a_z: float, V: float) -> np.ndarray:
+        """q' (N,) for pitch rates q (N,), elevator de (scalar or (N,)) rad, a_z m/s^2, V m/s."""
+        p = self.p
+        V = max(float(V), 1.0)
+        qbar_S = 0.5 * p.rho * V * V * p.S
+        qc = q * (p.c / (2.0 * V))
+        alpha = (-a_z * p.m / qbar_S - p.C_L0 - p.C_Lq * qc - p.C_Lde * de) / p.C_La
+        return (qbar_S * p.c / p.Jy) * (p.C_m0 + p.C_ma * alpha + p.C_mq * qc + p.C_mde * de)
+
+
 class KinematicProcess:
     """x+ = x + dt f_kin(x, a) on the extended state (faults: random walk); inputs u (4,) =
-    [delta_e, delta_t, a_x, a_z] (the first two unused)."""
+    [delta_e, delta_t, a_x, a_z], or (5,) with the airspeed (m/s) when a `PitchMoment` drives q.
+
+    moment: None (q a random walk) or the pitch-moment model; v_ref (m/s): the airspeed of the
+    one-frame elevator response `B_actuator` (5, nf) (zero without a moment).
+    """
 
     kind = "kinematic"
 
-    def __init__(self, dt: float, layout: FaultLayout) -> None:
+    def __init__(self, dt: float, layout: FaultLayout, moment: PitchMoment | None = None,
+                 v_ref: float = 40.0) -> None:
         self.dt = float(dt)
         self.layout = layout
+        self.moment = moment
         self.B_actuator = np.zeros((N_AIRFRAME, layout.nf))
+        self._elevator = np.flatnonzero(layout.actuator_input == 0)
+        if moment is not None and self._elevator.size:
+            gain = self.dt * moment.scale(v_ref) * moment.elevator_gain
+            self.B_actuator[3, self._elevator] = 0.5 * self.dt * gain
+            self.B_actuator[4, self._elevator] = gain
+
+    def _elevator_of(self, X: np.ndarray, de: float):
+        """delta_e each particle's elevator sees: the command plus its elevator fault entries."""
+        for j in self._elevator:
+            de = de + X[N_AIRFRAME + j]
+        return de
 
     def propagate(self, X: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (4,)."""
@@ -49,4 +101,7 @@ class KinematicProcess:
         out[1] += h * (ax - q * vw - G * s)
         out[2] += h * (az + q * vu + G * c)
         out[3] += h * q
+        if self.moment is not None:
+            de = self._elevator_of(X, float(u[0]))
+            out[4] += h * self.moment.qdot(q, de, az, float(u[4]))
         return out[:, 0] if one else out

@@ -74,7 +74,7 @@ def test_row_split_takes_the_accelerometer_out_of_the_rows_and_holds_it(robust):
     mask = np.ones(len(rows), dtype=bool)
     yo, mo, u = split.split(y, mask, np.array([0.1, 0.6]))
     assert list(yo) == [rows.index(r) for r in robust.observed]
-    assert mo.all() and list(u) == [0.1, 0.6, rows.index("ax"), rows.index("az")]
+    assert mo.all() and list(u) == [0.1, 0.6, rows.index("ax"), rows.index("az"), rows.index("airspeed")]
     mask[rows.index("az")] = False                      # no new az: the last one is held
     y2 = y + 100.0
     _, _, u2 = split.split(y2, mask, np.array([0.1, 0.6]))
@@ -85,12 +85,12 @@ def test_row_split_drops_the_accelerometer_for_filters_that_do_not_integrate_it(
     split = RowSplit.of(robust, False, np.zeros(5))
     y = np.ones(len(robust.measurements))
     yo, mo, u = split.split(y, y > 0, np.array([0.0, 0.5]))
-    assert yo.size == len(robust.observed) == 6 and u.size == 2
+    assert yo.size == len(robust.observed) == 6 and u.size == 2 and mo.all()
 
 
 def test_row_split_starts_on_the_trim_specific_force(robust):
     split = RowSplit.of(robust, True, np.array([-500.0, 40.0, 2.0, 0.05, 0.0]))
-    np.testing.assert_allclose(split.hold, [G * np.sin(0.05), -G * np.cos(0.05)])
+    np.testing.assert_allclose(split.hold, [G * np.sin(0.05), -G * np.cos(0.05), np.hypot(40.0, 2.0)])
 
 
 class Still:
@@ -124,7 +124,7 @@ def test_robust_estimator_builds_a_kinematic_filter_with_drift(robust):
     assert isinstance(f.parts.predict, DriftPredict)
     assert f.meas.names == robust.observed and "ax" not in f.meas.names
     rows = len(robust.measurements)
-    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79])
+    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79, 40.0])
     out = f.step(0.05, y, np.ones(rows, bool), np.array([-0.08, 0.5]))
     assert np.isfinite(out.x_mean).all() and out.fault_probability.max() < 0.5
 
@@ -132,8 +132,8 @@ def test_robust_estimator_builds_a_kinematic_filter_with_drift(robust):
 @pytest.mark.parametrize("name", ["KF", "IMM-KF", "EKF-GATE", "RPF"])
 def test_every_filter_runs_on_an_estimator_with_accelerometer_rows(robust, name):
     f = build_filter(name, robust, np.random.default_rng(0), particles=50)
-    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79])
-    out = f.step(0.05, y, np.ones(8, bool), np.array([-0.08, 0.5]))
+    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79, 40.0])
+    out = f.step(0.05, y, np.ones(9, bool), np.array([-0.08, 0.5]))
     assert np.isfinite(out.x_mean).all() and np.isfinite(out.fault_probability).all()
 
 
@@ -149,11 +149,60 @@ def test_kinematic_model_needs_the_accelerometer_rows():
         parse_estimator(doc)
 
 
-def test_kinematic_model_refuses_actuator_faults():
+def test_kinematic_model_refuses_throttle_faults():
     doc = _robust_doc()
-    doc["faults"].append({"id": "de", "target": "delta_e", "unit": "deg", "sigma_f": 0.001})
+    doc["faults"].append({"id": "dt", "target": "delta_t", "unit": "1", "sigma_f": 0.001})
     with pytest.raises(ConfigError, match="cannot see actuator faults"):
         parse_estimator(doc)
+
+
+def test_kinematic_model_needs_the_pitot_to_see_the_elevator():
+    doc = _robust_doc()
+    doc["measurements"]["rows"].remove("airspeed")
+    with pytest.raises(ConfigError, match="must list airspeed"):
+        parse_estimator(doc)
+
+
+def test_pitch_moment_balances_at_the_airframes_trim(params):
+    from fdir_service.airframe.trim import trim as trim_of
+    from fdir_service.estimation.kinematic import PitchMoment
+
+    tr = trim_of(params, 40.0, 500.0)
+    z, u = tr.z, tr.u
+    pm = PitchMoment(params)
+    a_z = -params.g * np.cos(z[3])          # level trim: the lift carries the weight
+    qdot = pm.qdot(np.array([0.0]), u[0], a_z, float(np.hypot(z[1], z[2])))
+    # one degree of elevator moves q' by ~1.6 rad/s^2; the trim balances to a few hundredths of it
+    assert abs(qdot[0]) < 0.05 * abs(pm.scale(40.0) * pm.elevator_gain * np.radians(1.0))
+    assert pm.elevator_gain < 0                                     # trailing edge down: nose down
+
+
+def test_pitch_moment_explains_the_pitch_acceleration_in_turbulence(turbulent_flight):
+    from fdir_service.estimation.kinematic import PitchMoment
+
+    sc, tr = turbulent_flight
+    names = sc.sensors.measurements
+    pm = PitchMoment(sc.estimator.airframe_params())
+    q = tr.z[:, 4]
+    dq = np.diff(q) / sc.dt_s
+    a_z, V = tr.y[:-1, names.index("az")], tr.y[:-1, names.index("airspeed")]
+    pred = np.array([pm.qdot(q[k:k + 1], tr.u[k, 0], a_z[k], V[k])[0] for k in range(len(dq))])
+    # the gusts swing q' by ~0.4 rad/s^2; the moment read from the accelerometer explains most of it
+    assert np.std(dq) > 0.3 and np.std(dq - pred) < 0.5 * np.std(dq)
+
+
+def test_kinematic_elevator_response_is_the_moments():
+    from fdir_service.airframe.params import AirframeParams
+    from fdir_service.estimation.kinematic import PitchMoment
+
+    pm = PitchMoment(AirframeParams())
+    lay = FaultLayout(("de",), ("actuator",), ("delta_e",), ("q",))
+    proc = KinematicProcess(0.05, lay, pm, 40.0)
+    X = np.zeros((6, 2))
+    X[1], X[5, 1] = 40.0, 0.01                          # particle 1: a 0.01 rad elevator fault
+    u = np.array([0.0, 0.5, 0.0, -9.8, 40.0])
+    dq = proc.propagate(X, u)[4]
+    assert dq[1] - dq[0] == pytest.approx(proc.B_actuator[4, 0] * 0.01, rel=1e-9)
 
 
 def test_a_fault_cannot_target_an_accelerometer_row():
@@ -193,5 +242,7 @@ def test_robust_estimator_proposes_gyro_sentinels_from_the_window_and_moves_thei
     assert isinstance(carry, ActuatorCarry)
     j = robust.observed.index("q")
     gyro = [k for k, x in enumerate(robust.faults) if x.target == "q"][0]
-    assert j >= 0 and list(carry.columns) == [gyro]
-    np.testing.assert_array_equal(carry.B[:, 0], [0, 0, 0, 0, -1])   # f_q up by dA: q down by dA
+    elevator = [k for k, x in enumerate(robust.faults) if x.target == "delta_e"][0]
+    assert j >= 0 and list(carry.columns) == [elevator, gyro]
+    np.testing.assert_array_equal(carry.B[:, 1], [0, 0, 0, 0, -1])   # f_q up by dA: q down by dA
+    assert carry.B[4, 0] < 0 and carry.B[:3, 0].tolist() == [0, 0, 0]  # the elevator moves q
