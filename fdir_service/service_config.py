@@ -31,7 +31,9 @@ from fdir_service.estimator_config import (
 from fdir_service.paths import service_path
 from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, Check, TomlTable
 
-TRANSFORMS = ("none", "negate", "pressure_to_altitude", "pwm")
+TRANSFORMS = ("none", "negate", "pressure_to_altitude", "pwm", "differential_pressure_to_airspeed")
+RHO_SEA_LEVEL = 1.225
+"""kg/m^3: a pitot's differential pressure (Pa) reads as the indicated airspeed sqrt(2 dp / rho_0)."""
 _FIELD_RE = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
 
 
@@ -77,6 +79,8 @@ class FieldMap:
             from fdir_service.atmosphere import altitude_from_pressure
 
             return float(altitude_from_pressure(v)) if v > 0.0 else math.nan
+        if self.transform == "differential_pressure_to_airspeed":
+            return math.sqrt(2.0 * v / RHO_SEA_LEVEL) if v >= 0.0 else math.nan
         if self.transform == "pwm":
             frac = (v - self.pwm_min) / (self.pwm_max - self.pwm_min)
             frac = min(max(frac, 0.0), 1.0)

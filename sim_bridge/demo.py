@@ -213,7 +213,7 @@ def max_altitude_error(truth_path: Path, command_m: float) -> float | None:
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="python -m sim_bridge.demo", description=__doc__.splitlines()[0])
-    ap.add_argument("--scenario", default="ch4")
+    ap.add_argument("--scenario", default="real-turbulence")
     ap.add_argument("--speed", type=float, default=5.0, help="times real time (default 5)")
     ap.add_argument("--filter", default=None, help="estimator (default: config/service.toml)")
     ap.add_argument("--particles", type=int, default=None)

@@ -23,6 +23,7 @@ import numpy as np
 
 from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.mavlink import pack as fast_pack
+from fdir_service.service_config import RHO_SEA_LEVEL
 from sim_bridge.scenario import Scenario
 
 ELEVATOR_PWM_RANGE_RAD = math.radians(30.0)
@@ -98,8 +99,10 @@ class AutopilotLink:
     def _baro(t: float, v: dict, static_pressure_pa: float):
         if v.get("baro_alt") is None:
             return None
+        airspeed = v.get("airspeed")     # the pitot's differential pressure, read back with rho_0
+        diff_hpa = 0.0 if airspeed is None else 0.5 * RHO_SEA_LEVEL * float(airspeed) ** 2 / 100.0
         return dialect.MAVLink_scaled_pressure_message(int(round(t * 1000.0)),
-                                                       float(static_pressure_pa) / 100.0, 0.0, 1500)
+                                                       float(static_pressure_pa) / 100.0, diff_hpa, 1500)
 
     @staticmethod
     def _attitude(t: float, v: dict, static_pressure_pa: float):

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fdir_service.estimation.factory import estimator_linear_model
+from fdir_service.estimation.inputs import trim_inputs
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimator_config import EstimatorConfig
@@ -48,9 +49,28 @@ def model_frames(estimator: EstimatorConfig, steps: int, rng: np.random.Generato
     for k in range(K):                       # a loop over frames (the truth's own time), not particles
         zk = lm.step(zk, lm.trim.u) + noise[k]
         z[k] = zk
-    y = z @ meas.H[:, :N_AIRFRAME].T + rng.standard_normal((K, meas.m)) * meas.sigma
+    y_obs = z @ meas.H[:, :N_AIRFRAME].T + rng.standard_normal((K, meas.m)) * meas.sigma
     rows = [r for r in layout.sensor_row if r >= 0]
     if onset_s is not None and rows:
-        y[t >= onset_s - 1e-9, rows[0]] += size_sigma * meas.sigma[rows[0]]
+        y_obs[t >= onset_s - 1e-9, rows[0]] += size_sigma * meas.sigma[rows[0]]
+    y = _with_input_rows(estimator, y_obs, z, rng)
     u = np.broadcast_to(np.asarray(lm.trim.u, dtype=float), (K, 2)).copy()
     return ModelFrames(t, y, np.ones_like(y, dtype=bool), u)
+
+
+def _with_input_rows(estimator: EstimatorConfig, y_obs: np.ndarray, z: np.ndarray,
+                     rng: np.random.Generator) -> np.ndarray:
+    """(K, m) frames over all the estimator's rows: the observed ones, and its input rows as steady
+    flight at each state z (K, 5) reads them (the linear model's world has no accelerations),
+    with their assumed noise."""
+    rows, sigma = estimator.measurements, dict(zip(estimator.measurements, estimator.sigma, strict=True))
+    if rows == estimator.observed:
+        return y_obs
+    y = np.empty((y_obs.shape[0], len(rows)))
+    obs = [j for j, r in enumerate(rows) if r in estimator.observed]
+    y[:, obs] = y_obs
+    for j, r in enumerate(rows):
+        if r not in estimator.observed:
+            steady = np.array([trim_inputs(zk)[r] for zk in z])
+            y[:, j] = steady + sigma[r] * rng.standard_normal(len(z))
+    return y

@@ -63,5 +63,7 @@ class DriftPredict(GaussianPredict):
         noise[:N_AIRFRAME] *= self.q_std[:N_AIRFRAME]
         noise[N_AIRFRAME:] *= np.where(modes, self.q_std[N_AIRFRAME:], self.drift_std)
         X += noise
-        np.clip(X[N_AIRFRAME:], -self.bound, self.bound, out=X[N_AIRFRAME:])
+        F = X[N_AIRFRAME:]
+        np.minimum(F, self.bound, out=F)
+        np.maximum(F, -self.bound, out=F)
         return X

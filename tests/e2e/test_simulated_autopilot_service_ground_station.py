@@ -1,7 +1,9 @@
 """End to end, through real UDP sockets on loopback: `sim-bridge fly` -> `fdir run` -> a pymavlink
 ground-station listener (issue 5 acceptance). Both programs run as real subprocesses, lockstep
 (`--speed 0`), the ch4 world (GNSS altitude +50 m on 10-30 s, baro +30 m on 20-40 s) monitored by
-`fdir run` with its defaults (the Aerosonde estimator, which knows nothing of the world)."""
+`fdir run` with the thesis's aerodynamic estimator (`--estimator aerosonde`: a thesis world has no
+accelerometer or pitot on the wire; the default robust monitor is tested on a real-sky world in
+test_robust_default_monitor_and_identify.py)."""
 
 from __future__ import annotations
 
@@ -25,8 +27,11 @@ def fly(tmp_path: Path, nav: str, duration: float, seed: int = 3) -> tuple[Groun
     p_ap, p_gcs = free_udp_port(), free_udp_port()
     gs = GroundStation(p_gcs)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    # ch4 is a thesis world (no accelerometer, no pitot on the wire): its monitor is the
+    # aerodynamic estimator, not the service's default robust one
     service = subprocess.Popen(
         [sys.executable, "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
+         "--estimator", "aerosonde",
          "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(tmp_path / f"flight-{nav}.mcap")],
         cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
     truth = tmp_path / f"truth-{nav}.mcap"

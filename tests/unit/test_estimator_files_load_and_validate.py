@@ -54,7 +54,7 @@ def test_overrides_merge_tables_and_replace_lists():
     ({"parts": {"resampler": "stratified"}}, "parts.resampler"),
     ({"filter": "XPF"}, "filter"),
     ({"operating_point": {"airspeed_mps": -3.0}}, "operating_point.airspeed_mps"),
-    ({"measurements": {"rows": ["theta", "airspeed"]}}, "measurements.rows"),
+    ({"measurements": {"rows": ["theta", "pitot"]}}, "measurements.rows"),
     ({"truth": {"sigma": 1.0}}, "truth"),                 # no world in an estimator file
     ({"faults": [{"id": "toolongid", "target": "q", "unit": "deg/s", "sigma_f": 0.0}]}, "faults"),
 ])

@@ -43,6 +43,9 @@ class FakeAmplitude:
         self.available = np.array(available)
         self.sigma = np.array([5.0, 0.01])
 
+    def observe(self, frame):
+        return None
+
     def predict(self, X, innov, mask):
         return np.full((LAYOUT.nf, X.shape[1]), self.value), self.available
 

@@ -14,11 +14,13 @@ from fdir_service.errors import ConfigError
 from fdir_service.service_config import ServiceConfig, default_config_path, load_service_config
 
 BASE = default_config_path().read_text()
+DEFAULT_LINE = next(line for line in BASE.splitlines() if line.startswith("estimator = "))
+"""The default config's `service.estimator` line (the tests add keys after it)."""
 
 
 def test_default_config():
     c = load_service_config()
-    assert (c.estimator.id, c.filter, c.particles, c.seed) == ("aerosonde", "RJMRPF", 1000, 0)
+    assert (c.estimator.id, c.filter, c.particles, c.seed) == ("aerosonde-robust", "RJMRPF", 1000, 0)
     assert [m.name for m in c.measurements] == list(c.estimator.measurements)
     assert c.component == 191 and c.frame_period_us == 50_000
     baro = c.measurements[1]
@@ -28,11 +30,11 @@ def test_default_config():
 
 
 @pytest.mark.parametrize(("old", "new", "key"), [
-    ('estimator = "aerosonde"', 'estimator = "aerosonde"\nparticels = 3', "service.particels"),
-    ('estimator = "aerosonde"', 'estimator = "aerosonde"\nparticles = "many"', "service.particles"),
-    ('estimator = "aerosonde"', 'estimator = "aerosonde"\nparticles = 0', "service.particles"),
-    ('estimator = "aerosonde"', 'estimator = "aerosonde"\nfilter = "XPF"', "service.filter"),
-    ('estimator = "aerosonde"', 'estimator = "no-such-estimator"', "no such estimator file"),
+    (DEFAULT_LINE, DEFAULT_LINE + '\nparticels = 3', "service.particels"),
+    (DEFAULT_LINE, DEFAULT_LINE + '\nparticles = "many"', "service.particles"),
+    (DEFAULT_LINE, DEFAULT_LINE + '\nparticles = 0', "service.particles"),
+    (DEFAULT_LINE, DEFAULT_LINE + '\nfilter = "XPF"', "service.filter"),
+    (DEFAULT_LINE, 'estimator = "no-such-estimator"', "no such estimator file"),
     ('rate_hz = 20.0', 'rate_hz = 50.0', "frames.rate_hz"),
     ('p_clear = 0.5', 'p_clear = 0.95', "publish.declare.p_clear"),
     ('field = "alt"', 'field = "altitude"', "measurements.gnss_alt.field"),
@@ -70,7 +72,7 @@ max = 0.5235988''')
 
 def test_cli_exit_status_2_on_bad_config(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
-    bad.write_text(BASE.replace('estimator = "aerosonde"', 'estimator = "aerosonde"\nseed = -1'))
+    bad.write_text(BASE.replace(DEFAULT_LINE, DEFAULT_LINE + '\nseed = -1'))
     assert main(["run", "--config", str(bad), "--duration", "0"]) == 2
     assert "service.seed" in capsys.readouterr().err
 

@@ -1,0 +1,83 @@
+"""`fdir identify`'s fits on frames with known answers: the pitch balance the monitor uses, the lift
+curve when the flight tells it, the file's values where it does not, and clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fdir_service.airframe.params import AirframeParams, load_airframe
+from fdir_service.cli import main
+from fdir_service.identification import FlightFrames, _combined, identify
+
+ROWS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q", "ax", "az", "airspeed")
+
+
+def _frames(truth: AirframeParams, K: int = 4000, excite: float = 1.0, seed: int = 0) -> FlightFrames:
+    """Frames of a flight that obeys `truth`'s pitch balance exactly: angle of attack, pitch rate and
+    airspeed vary (by `excite`), the elevator is what balances them, the accelerometer reads the
+    lift, w = V sin(alpha)."""
+    rng = np.random.default_rng(seed)
+    dt, p = 0.05, truth
+    t = dt * np.arange(K)
+    V = 40.0 + excite * 2.0 * np.sin(0.05 * t)
+    alpha = 0.05 + excite * (0.02 * np.sin(0.7 * t + 1.0) + 0.003 * np.sin(2.3 * t))
+    q = excite * 0.05 * np.sin(0.9 * t + 0.3)
+    qdot = excite * 0.05 * 0.9 * np.cos(0.9 * t + 0.3)
+    qbar_S = 0.5 * p.rho * V**2 * p.S
+    K_q = qbar_S * p.c / p.Jy
+    qc = q * p.c / (2.0 * V)
+    de = (qdot / K_q - p.C_m0 - p.C_ma * alpha - p.C_mq * qc) / p.C_mde
+    CL = p.C_L0 + p.C_La * alpha + p.C_Lq * qc + p.C_Lde * de
+    y = np.zeros((K, len(ROWS)))
+    y[:, ROWS.index("w")] = V * np.sin(alpha)
+    y[:, ROWS.index("q")] = q + 1e-5 * rng.standard_normal(K)
+    y[:, ROWS.index("az")] = -CL * qbar_S / p.m
+    y[:, ROWS.index("airspeed")] = V
+    u = np.column_stack([de, np.full(K, 0.5)])
+    return FlightFrames(ROWS, t, y, np.ones_like(y, dtype=bool), u)
+
+
+def test_an_excited_flight_gives_back_the_pitch_balance_and_the_lift_curve():
+    base = load_airframe("aerosonde")
+    truth = AirframeParams(C_m0=-0.035, C_ma=-0.45, C_mde=-0.42, C_La=3.9, C_L0=0.25)
+    ident = identify(_frames(truth), base)
+    assert ident.lift_r2 > 0.99
+    assert ident.params.C_La == pytest.approx(3.9, rel=0.02)
+    assert ident.params.C_L0 == pytest.approx(0.25, abs=0.005)
+    np.testing.assert_allclose(_combined(ident.params)[[0, 1, 3]], _combined(truth)[[0, 1, 3]],
+                               rtol=0.05, atol=2e-3)
+    assert ident.moment_residual_std < 0.2 * ident.moment_residual_std_before
+
+
+def test_a_steady_flight_moves_the_trim_and_keeps_the_files_slopes():
+    base = load_airframe("aerosonde")
+    truth = AirframeParams(C_m0=-0.035)                 # the pitch balance off by 0.012 in C_m
+    ident = identify(_frames(truth, excite=0.0), base)
+    assert "kept" in ident.report()                     # no angle-of-attack variation: no lift curve
+    assert ident.params.C_La == base.C_La and ident.params.C_mq == pytest.approx(base.C_mq, rel=0.05)
+    assert ident.params.C_ma == pytest.approx(base.C_ma, rel=0.05)
+    frames = _frames(truth, excite=0.0)
+    CL, de = float(-frames.column("az")[0] * 25.0 / (0.5 * 1.168 * 1600 * 0.55)), float(frames.u[0, 0])
+    c_fit, c_true = _combined(ident.params), _combined(truth)
+    # the balance at the trim it flew is the truth's: zero pitch acceleration there
+    assert c_fit[0] + c_fit[1] * CL + c_fit[3] * de == pytest.approx(0.0, abs=2e-4)
+    assert c_true[0] + c_true[1] * CL + c_true[3] * de == pytest.approx(0.0, abs=1e-9)
+
+
+def test_too_few_frames_or_missing_rows_are_refused():
+    frames = _frames(AirframeParams(), K=100)
+    with pytest.raises(ValueError, match="usable frames"):
+        identify(frames, AirframeParams())
+    short = FlightFrames(ROWS[:6], frames.t, frames.y[:, :6], frames.mask[:, :6], frames.u)
+    with pytest.raises(ValueError, match="lack rows"):
+        identify(short, AirframeParams())
+
+
+def test_identify_names_the_missing_rows_of_a_log_without_them(tmp_path, capsys):
+    from pathlib import Path
+
+    legacy = Path(__file__).resolve().parents[1] / "data" / "legacy-scenario-ch4.mcap"
+    assert main(["identify", str(legacy), "--out", str(tmp_path / "a.toml")]) == 1
+    err = capsys.readouterr().err
+    assert "fdir identify:" in err and not (tmp_path / "a.toml").exists()
