@@ -137,10 +137,8 @@ def conditioned_on_mode0(P: np.ndarray, off: list[int]) -> np.ndarray:
         Poo = P[np.ix_(off, off)]
         Pko = P[np.ix_(keep, off)]
         if np.all(np.diag(Poo) > 1e-300):
-            try:
-                P[np.ix_(keep, keep)] -= Pko @ np.linalg.solve(Poo, Pko.T)
-            except np.linalg.LinAlgError:   # mode-0 entries that co-vary exactly (a drifting pair)
-                P[np.ix_(keep, keep)] -= Pko @ np.linalg.pinv(Poo, hermitian=True) @ Pko.T
+            # pinv, not solve: mode-0 entries that co-vary exactly (a drifting pair) make Poo singular
+            P[np.ix_(keep, keep)] -= Pko @ np.linalg.pinv(Poo, hermitian=True) @ Pko.T
         P[off, :] = 0.0
         P[:, off] = 0.0
     return P
