@@ -224,10 +224,14 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def _commands(args: argparse.Namespace, p_ap: int, p_gcs: int, log_path: Path,
-              truth_path: Path) -> tuple[list[str], list[str]]:
-    """The `fdir run` and `sim-bridge fly` command lines of the demo."""
+              truth_path: Path, imu: bool = True) -> tuple[list[str], list[str]]:
+    """The `fdir run` and `sim-bridge fly` command lines of the demo. imu: the world sends an
+    accelerometer and a pitot (else the service runs the thesis's aerodynamic estimator, which
+    needs neither, instead of its default robust one)."""
     fdir_cmd = [_python(), "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
                 "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log_path)]
+    if not imu:
+        fdir_cmd += ["--estimator", "aerosonde"]
     if args.filter:
         fdir_cmd += ["--filter", args.filter]
     if args.particles:
@@ -289,7 +293,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"demo: scenario {scenario.id}, {args.speed:g}x real time, autopilot flying on the "
           f"{'FDIR estimate' if args.nav == 'fdir' else 'true state'}; ground station on udp {p_gcs}",
           flush=True)
-    fdir_cmd, sim_cmd = _commands(args, p_ap, p_gcs, log_path, truth_path)
+    rows = scenario.sensors.measurements
+    imu = all(r in rows for r in ("ax", "az", "airspeed"))
+    fdir_cmd, sim_cmd = _commands(args, p_ap, p_gcs, log_path, truth_path, imu)
     service = subprocess.Popen(fdir_cmd, stderr=subprocess.PIPE, text=True)
     sim = subprocess.Popen(sim_cmd, stderr=subprocess.PIPE, text=True)
     try:
