@@ -145,8 +145,10 @@ class Truth:
         dispersion_ss, turbulence_ss = np.random.SeedSequence(int(rng.integers(2**63))).spawn(2) \
             if (sky.dispersion.active or sky.turbulence.active) else (None, None)
         self.nominal = params
-        self.params = (dispersed_airframe(params, sky.dispersion, np.random.default_rng(dispersion_ss))
-                       if sky.dispersion.active else params)
+        one = sky.dispersion.aircraft_seed
+        aircraft = np.random.default_rng(dispersion_ss if one is None else one)
+        self.params = (dispersed_airframe(params, sky.dispersion, aircraft) if sky.dispersion.active
+                       else params)
         params = self.params
         self._turbulence_ss = turbulence_ss
         self.dt = scenario.dt_s

@@ -19,6 +19,7 @@ Every one is off by default, so the thesis experiments are unchanged. Keys (docs
     wind_6m_mps = 15.4             # optional: the wind at 6 m (20 ft) itself
     [world.dispersion]             # each run's truth airframe, drawn uniformly within +- fraction
     mass = 0.10                    # keys: mass, C_m0, C_m_alpha, C_L_alpha, C_D_p, C_m_q, C_prop
+    aircraft_seed = 7              # optional: the same dispersed aircraft in every run
 """
 
 from __future__ import annotations
@@ -75,9 +76,12 @@ class TurbulenceConfig:
 
 @dataclass(frozen=True)
 class DispersionConfig:
-    """Each run's truth airframe: AirframeParams field -> +- fraction (uniform)."""
+    """Each run's truth airframe: AirframeParams field -> +- fraction (uniform). aircraft_seed: None,
+    a new airframe every run; an integer, one airframe (drawn from this seed) in every run: one
+    aircraft flown many times, as `fdir identify` then monitoring it needs."""
 
     fractions: dict[str, float] = field(default_factory=dict)
+    aircraft_seed: int | None = None
 
     @property
     def active(self) -> bool:
@@ -128,12 +132,13 @@ def parse_turbulence(w: TomlTable) -> TurbulenceConfig:
 def parse_dispersion(w: TomlTable) -> DispersionConfig:
     t = w.sub("dispersion")
     fr = {DISPERSED[k]: t.take(k, "number", 0.0, check=NON_NEGATIVE) for k in DISPERSED}
+    seed = t.take("aircraft_seed", "integer", None, check=NON_NEGATIVE)
     t.finish()
     for k, v in fr.items():
         if v >= 1.0:
             raise ConfigError(f"{t.key(next(n for n, f in DISPERSED.items() if f == k))}: expected a "
                               f"fraction below 1, got {v}")
-    return DispersionConfig({k: v for k, v in fr.items() if v > 0})
+    return DispersionConfig({k: v for k, v in fr.items() if v > 0}, seed)
 
 
 def parse_real_sky(w: TomlTable, model: str) -> RealSky:

@@ -175,3 +175,14 @@ def test_the_real_family_loads_with_the_default_estimator():
         sc = load_scenario(sid)
         assert sc.estimator.doc.get("id") == sid and sc.estimator.faults[0].id == "gnss"
         assert ("faultfree" in sid) == (len(sc.faults) == 0)
+
+
+def test_an_aircraft_seed_flies_the_same_dispersed_aircraft_in_every_run():
+    from sim_bridge.simulate import SimStepper
+
+    one = load_scenario("real-one-aircraft")
+    many = load_scenario("real-dispersed")
+    a, b = (SimStepper(one, s).truth.params for s in (1, 2))
+    c, d = (SimStepper(many, s).truth.params for s in (1, 2))
+    assert a == b and c != d
+    assert a != SimStepper(one, 1).truth.nominal          # still dispersed from the file's airframe
