@@ -77,6 +77,10 @@ class FaultSpec:
     drift_sigma: float = 0.0
     """parts.mode0 = "drift": random-walk std (SI per sqrt(s)) of the fault entry in mode 0, the
     sensor's slow fault-free error (a gyro bias walk, a GNSS Gauss-Markov wander)."""
+    on_exit: str = "reset"
+    """A sensor fault's 1 -> 0 exit: "reset" (the fault ended: its entry to 0) or "reset_or_fold"
+    (half the exits fold the entry into the airframe state instead: the state was wrong, this
+    sensor right; `jump.ExitFold`)."""
 
     @property
     def unit_scale(self) -> float:
@@ -116,6 +120,8 @@ class FilterSettings:
     mode0: str = "forced_zero"           # "forced_zero" | "reset_on_exit" | "drift"
     pi01: float = 0.01
     pi10: float = 0.01
+    pi10_faint: float = 0.0              # per step: exit rate of a mode-1 fault fainter than one frame's
+    #                                      amplitude noise (0: pi10 for all)
     saddlepoint_window: int = 3
     sentinel_weighting: str = "prior"    # "thesis" (Alg. 4.1 as written) | "prior" (p(f | jump) / q(f))
     jitter: str = "per_mode"             # "global" (one kernel) | "per_mode"
@@ -207,6 +213,10 @@ class EstimatorConfig:
 
 # ----------------------------------------------------------------------------- validation
 
+EXIT_CHOICES = ("reset", "reset_or_fold")
+"""faults.on_exit values."""
+
+
 def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
     fid = t.take("id", "string")
     if not fid.isidentifier() or len(fid) > 7:
@@ -223,7 +233,11 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         pi01=t.take("pi01", "number", None, check=UNIT_INTERVAL),
         pi10=t.take("pi10", "number", None, check=UNIT_INTERVAL),
         drift_sigma=t.take("drift_sigma", "number", 0.0, check=NON_NEGATIVE),
+        on_exit=t.take("on_exit", "string", "reset", choices=EXIT_CHOICES),
     )
+    if spec.kind == "actuator" and spec.on_exit != "reset":
+        raise ConfigError(f"{t.key('on_exit')}: an actuator fault has no sensor row to fold; "
+                          f"expected \"reset\", got {spec.on_exit!r}")
     t.finish()
     return spec
 
@@ -312,6 +326,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         bandwidth_k=f.take("bandwidth_k", "number", d.bandwidth_k, check=POSITIVE),
         pi01=f.take("pi01", "number", d.pi01, check=UNIT_INTERVAL),
         pi10=f.take("pi10", "number", d.pi10, check=UNIT_INTERVAL),
+        pi10_faint=f.take("pi10_faint", "number", d.pi10_faint, check=UNIT_INTERVAL),
         saddlepoint_window=f.take("saddlepoint_window", "integer", d.saddlepoint_window,
                                   check=POSITIVE),
         rate_window_s=f.take("rate_window_s", "number", d.rate_window_s, check=POSITIVE),

@@ -649,14 +649,17 @@ def yardstick_markdown(doc: dict) -> list[str]:
         return []
     y0 = rows[0][1]
     L = ["## Safety yardstick", "",
-         f"By the service's own declare / clear hysteresis (declare at P >= {y0['p_declare']}); false "
-         "alarms counted on the fault-free flight time (no injected fault, none ended within "
-         f"{GRACE_S:g} s); definitions in sim_bridge/yardstick.py.", "",
-         "| filter | false alarms / flight hour | false alarms | fault-free hours | faults declared | "
-         "median delay (s) | p90 delay (s) | right fault isolated |", "|---|---|---|---|---|---|---|---|"]
+         f"By the service's own declare / clear hysteresis (declare at P >= {y0['p_declare']}); a false "
+         "alarm is a stretch of fault-free flight time (no injected fault, none ended within "
+         f"{GRACE_S:g} s) with a fault declared, whether the declaration started there or still "
+         "stands from an injected fault's time; definitions in sim_bridge/yardstick.py.", "",
+         "| filter | false alarms / flight hour | false alarms | fault-free hours | time falsely declared | "
+         "faults declared | median delay (s) | p90 delay (s) | right fault isolated |",
+         "|---|---|---|---|---|---|---|---|---|"]
     for name, y in rows:
         L.append(f"| {name} | {_fmt(y['false_alarms_per_hour'], 2)} | {y['false_alarms']} | "
-                 f"{_fmt(y['fault_free_hours'], 2)} | {y['detected']} / {y['episodes']} | "
+                 f"{_fmt(y['fault_free_hours'], 2)} | {_fmt(y.get('falsely_declared_fraction'))} | "
+                 f"{y['detected']} / {y['episodes']} | "
                  f"{_fmt(y['delay_s']['median'], 2)} | {_fmt(y['delay_s']['p90'], 2)} | "
                  f"{_fmt(y['isolation_accuracy'], 2)} |")
     L.append("")

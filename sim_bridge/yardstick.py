@@ -3,10 +3,12 @@
 The service declares fault j when P(fault j) >= p_declare on every frame for declare_hold_s, and
 clears it when P <= p_clear for clear_hold_s (`[publish.declare]` of the service's default config,
 `fdir_service.runtime.publishing`). Applied here to each run's P(fault) series (`declared`):
-- a **false alarm** is a declaration that starts while the world injects no fault (any of its
-  faults, monitored or not) and not within GRACE_S after an injected fault ended; the
-  **fault-free flight time** is the time where those conditions hold; false alarms per flight hour
-  is their ratio over all runs;
+- the **fault-free flight time** is the time while the world injects no fault (any of its faults,
+  monitored or not) and not within GRACE_S after an injected fault ended; a **false alarm** is each
+  stretch of fault-free time during which one fault stands declared: a declaration that starts
+  there, or one that started during an injected fault (of another item, say) and still stands
+  when the fault-free time begins; false alarms per flight hour is their ratio over all runs, and
+  the **falsely declared fraction** the share of fault-free time with any fault declared;
 - an injected fault episode is **detected** when the monitored fault of the same id is declared at
   some frame from its onset to GRACE_S after its end; its **delay** is from the onset to that
   frame (0 if it was declared already);
@@ -122,9 +124,11 @@ def run_yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_f
     world_active = (np.nan_to_num(world_faults) != 0.0).any(axis=1) if world_faults.size else \
         np.zeros(t.size, bool)
     quiet = quiet_mask(t, world_active)
-    false_alarms = sum(int(quiet[_onsets(dec[:, j])].sum()) for j in range(dec.shape[1]))
+    false_dec = dec & quiet[:, None]
+    false_alarms = sum(int(_onsets(false_dec[:, j]).size) for j in range(dec.shape[1]))
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-    out = {"false_alarms": false_alarms, "fault_free_s": float(quiet.sum() * dt), "episodes": []}
+    out = {"false_alarms": false_alarms, "fault_free_s": float(quiet.sum() * dt),
+           "false_declared_s": float(false_dec.any(axis=1).sum() * dt), "episodes": []}
     for w, wid in enumerate(world_ids):
         for s, e in episodes(np.nan_to_num(world_faults[:, w]) != 0.0):
             out["episodes"].append(_episode(t, dec, fault_ids, wid, s, e))
@@ -154,6 +158,7 @@ def pool(runs: list[dict], world_ids: list[str]) -> dict:
     """The yardstick over runs (each `run_yardstick`'s output) as results.json's `yardstick`."""
     fa = sum(r["false_alarms"] for r in runs)
     hours = sum(r["fault_free_s"] for r in runs) / 3600.0
+    false_h = sum(r.get("false_declared_s", 0.0) for r in runs) / 3600.0
     eps = [ep for r in runs for ep in r["episodes"]]
     delays = [ep["delay_s"] for ep in eps if ep["delay_s"] is not None]
     confusion: dict[str, dict[str, int]] = {wid: {} for wid in world_ids}
@@ -168,6 +173,7 @@ def pool(runs: list[dict], world_ids: list[str]) -> dict:
     return {
         "false_alarms": fa, "fault_free_hours": hours,
         "false_alarms_per_hour": (fa / hours) if hours > 0 else None,
+        "falsely_declared_fraction": (false_h / hours) if hours > 0 else None,
         "episodes": len(eps), "detected": len(delays),
         "detection_fraction": (len(delays) / len(eps)) if eps else None,
         "delay_s": {"median": q(50), "p90": q(90), "max": q(100), "n": len(delays)},

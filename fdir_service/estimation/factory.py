@@ -22,7 +22,16 @@ from fdir_service.estimation.correction import KalmanCorrection, Likelihood
 from fdir_service.estimation.gating import GatedKF, frozen_fault_scenario
 from fdir_service.estimation.imm import IMMKalman
 from fdir_service.estimation.inputs import RowSplit
-from fdir_service.estimation.jump import ActuatorCarry, FixedTransition, MarkovJump, NoCarry, NoJump
+from fdir_service.estimation.jump import (
+    ActuatorCarry,
+    ExitFold,
+    FaintExit,
+    FixedTransition,
+    MarkovJump,
+    NoCarry,
+    NoFold,
+    NoJump,
+)
 from fdir_service.estimation.kalman import KalmanFilter
 from fdir_service.estimation.kinematic import KinematicProcess, PitchMoment
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
@@ -214,7 +223,13 @@ def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, me
         return NoJump(FAULT_THRESHOLD_SIGMAS * amp.sigma), ThesisSentinels()
     carry = _carry(estimator, layout, process)
     forced_zero = estimator.settings.mode0 == "forced_zero"
-    jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry)
+    folding = np.array([f.on_exit == "reset_or_fold" for f in estimator.faults], dtype=bool)
+    fold = ExitFold.for_sensors(meas.H, np.where(folding, layout.sensor_row, -1)) \
+        if folding.any() else NoFold()
+    faint = estimator.settings.pi10_faint
+    exit_ = FaintExit(amp.sigma, faint) if faint > 0 else None
+    jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry, fold, exit_,
+                      exit_to_drift=estimator.settings.mode0 == "drift")
     return jump, _sentinel_weighting(estimator, layout, meas, amp, carry)
 
 

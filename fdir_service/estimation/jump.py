@@ -68,27 +68,58 @@ class FixedTransition:
 
 
 def jump(F: np.ndarray, modes: np.ndarray, amplitude: np.ndarray, available: np.ndarray,
-         pi01: np.ndarray, pi10: np.ndarray, v: np.ndarray, forced_zero: bool = True) -> np.ndarray:
+         pi01: np.ndarray, pi10: np.ndarray, v: np.ndarray, forced_zero: bool = True,
+         reset_to: np.ndarray | None = None) -> np.ndarray:
     """Apply Alg. 4.1 in place to fault entries F (nf, N) and modes (nf, N) bool.
 
     amplitude (nf, N): predicted fault amplitude per particle (A_f, eq. 4.14/4.16); available (nf,)
     bool: False where no amplitude could be predicted this frame (its measurement rows did not
-    arrive), then no particle enters mode 1 for that fault; pi01, pi10 (nf,); v (nf, N) ~ U(0, 1).
+    arrive), then no particle enters mode 1 for that fault; pi01 (nf,), pi10 (nf,) or per particle
+    (nf, N) (`FaintExit`); v (nf, N) ~ U(0, 1); reset_to (nf,): what an exit's fault entry becomes
+    when not forced_zero (None: 0).
     Returns the sentinels (nf, N) bool: the particles that jumped 0 -> 1 this step.
     """
     up = v < pi01[:, None]
     up &= ~modes
     up &= available[:, None]
-    down = v < pi10[:, None]
+    down = v < (pi10[:, None] if pi10.ndim == 1 else pi10)
     down &= modes
     np.copyto(F, amplitude, where=up)
     modes |= up
     modes &= ~down
     if forced_zero:
         F *= modes
-    else:
+    elif reset_to is None:
         F[down] = 0.0
+    else:
+        np.copyto(F, reset_to[:, None], where=down)
     return up
+
+
+def mode0_mean(F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((nf,) weighted mean of each fault entry over the particles in its mode 0 (0 where none is),
+    (nf,) their share of the weight): the sensor's fault-free error as the cloud knows it
+    (parts.mode0 = "drift"). F, modes (nf, N), w (N,) weights."""
+    w0 = np.where(modes, 0.0, w)
+    total = w0.sum(axis=1)
+    s = np.einsum("jn,jn->j", w0, F)
+    return np.divide(s, total, out=np.zeros_like(s), where=total > 1e-12), total / w.sum()
+
+
+class DriftMemory:
+    """The fault-free value of each fault entry, for exits to return to (parts.mode0 = "drift"):
+    the mode-0 particles' mean, updated only while mode 0 holds most of the weight. During a fault
+    the few mode-0 particles left are no estimate of the drift (an elevator's 0.9 deg of mis-trim
+    in a dispersed airframe was lost, and after the fault mode 1, which still held it, won)."""
+
+    def __init__(self, nf: int) -> None:
+        self.value = np.zeros(nf)
+
+    def update(self, F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Take this step's mode-0 means where mode 0 has > half the weight; returns value (nf,)."""
+        mean, share = mode0_mean(F, modes, w)
+        np.copyto(self.value, mean, where=share > 0.5)
+        return self.value
 
 
 class NoCarry:
@@ -125,6 +156,90 @@ class ActuatorCarry:
         X[:N_AIRFRAME] += self.B @ dF
 
 
+class ExitFold:
+    """On a 1 -> 0 exit, half the exiting particles (v < pi10 / 2) fold their sensor fault into the
+    airframe state instead of dropping it (faults.on_exit = "reset_or_fold"): x += G f, so the
+    sensor's prediction is unchanged and it is the state that was wrong. The other half reset f to
+    0 (the fault ended). Without the fold a state error that a sensor's fault took the blame for
+    (the altitude after a gyro fault, say) can never leave mode 1: every exit mispredicts that
+    sensor by f.
+
+    G (5, nf): per fault, the minimum-norm airframe change moving its row's prediction by f
+    (H_r^T / |H_r|^2 on the airframe part of row r); zero columns for faults that do not fold.
+    """
+
+    def __init__(self, G: np.ndarray) -> None:
+        self.G = np.asarray(G, dtype=float)
+        self.columns = np.flatnonzero(np.abs(self.G).sum(axis=0) > 0)
+
+    @classmethod
+    def for_sensors(cls, H: np.ndarray, sensor_row: np.ndarray) -> ExitFold:
+        """From the measurement matrix H (m, n) and each fault's row (nf,), -1 for actuators."""
+        G = np.zeros((N_AIRFRAME, sensor_row.size))
+        for j, r in enumerate(sensor_row.tolist()):
+            h = H[r, :N_AIRFRAME] if r >= 0 else np.zeros(N_AIRFRAME)
+            if h @ h > 0:
+                G[:, j] = h / (h @ h)
+        return cls(G)
+
+    def capture(self, F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
+                reset_to: np.ndarray | None = None) -> np.ndarray | None:
+        """pi10 (nf, 1) or (nf, N): the exit probabilities of this step; reset_to (nf,): what the
+        exit leaves in the fault entry (None: 0), so the fold moves the state by the rest. The fault
+        values (k, N) of the folding faults' particles that will fold (0 elsewhere),
+        or None when none folds this step."""
+        c = self.columns
+        fold = modes[c] & (v[c] < 0.5 * pi10[c])
+        if not fold.any():
+            return None
+        gone = F[c] if reset_to is None else F[c] - reset_to[c, None]
+        return np.where(fold, gone, 0.0)
+
+    def apply(self, X: np.ndarray, values: np.ndarray | None) -> None:
+        """X[:5] += G values, in place (after the jump zeroed the exited entries)."""
+        if values is not None:
+            X[:N_AIRFRAME] += self.G[:, self.columns] @ values
+
+
+class NoFold:
+    """Every 1 -> 0 exit resets its fault entry (faults.on_exit = "reset", the thesis)."""
+
+    def capture(self, F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
+                reset_to: np.ndarray | None = None) -> None:
+        return None
+
+    def apply(self, X: np.ndarray, values: None) -> None:
+        """Nothing moves."""
+
+
+class ModelExit:
+    """A mode-1 particle exits with the transition's pi10, whatever its fault entry (the thesis)."""
+
+    def pi10(self, F: np.ndarray, pi10: np.ndarray, center: np.ndarray | None = None) -> np.ndarray:
+        """(nf, 1) exit probabilities of this step."""
+        return pi10[:, None]
+
+
+class FaintExit:
+    """A mode-1 fault entry fainter than one frame's amplitude noise (|f| < threshold) exits at
+    rate (per step) instead of pi10 (parts.pi10_faint). The Kalman correction lets a mode-1 entry
+    follow its sensor back towards 0 when a fault ends; a fault of ~0 fits the data as well as
+    mode 0, so with the model's pi10 alone P(fault) would decay at pi10 per step (0.01: 2 s to
+    halve) and the service would clear seconds late. A fault no frame could tell from noise is not
+    one to declare. threshold (nf,) SI: the amplitude predictor's sigma.
+    """
+
+    def __init__(self, threshold: np.ndarray, rate: float) -> None:
+        self.threshold = np.asarray(threshold, dtype=float)[:, None]
+        self.rate = float(rate)
+
+    def pi10(self, F: np.ndarray, pi10: np.ndarray, center: np.ndarray | None = None) -> np.ndarray:
+        """(nf, N) exit probabilities of this step for fault entries F (nf, N), faint when within
+        threshold of center (nf,): the fault-free value (None: 0; the drift under mode0 = "drift")."""
+        dev = F if center is None else F - center[:, None]
+        return np.where(np.abs(dev) < self.threshold, np.maximum(pi10, self.rate)[:, None], pi10[:, None])
+
+
 class NoJump:
     """Filters without modes (RPF, RRPF, bootstrap): P(fault j) = weight of |f_j| > threshold_j.
 
@@ -157,17 +272,23 @@ class MarkovJump:
     """The jump step of the jump-Markov filters (Alg. 4.1) with a transition strategy.
 
     transition: `FixedTransition` | `adaptive.AdaptiveTransition`; amplitude: the A_f predictor;
-    forced_zero: mode-0 fault entries pinned at 0 (parts.mode0); carry: `NoCarry` | `ActuatorCarry`.
+    forced_zero: mode-0 fault entries pinned at 0 (parts.mode0); carry: `NoCarry` | `ActuatorCarry`;
+    fold: what an exit does with a sensor fault, `NoFold` | `ExitFold` (faults.on_exit).
     After `jump`, `sentinels` (nf, N) are the particles that jumped 0 -> 1 and `last_amplitude`
     (nf, N) their predicted amplitudes (indices before this step's resampling).
     """
 
-    def __init__(self, transition, amplitude: AmplitudePredictor, forced_zero: bool, carry) -> None:
+    def __init__(self, transition, amplitude: AmplitudePredictor, forced_zero: bool, carry,
+                 fold=None, exit=None, exit_to_drift: bool = False) -> None:
         self.transition = transition
         self.amplitude = amplitude
         self.forced_zero = bool(forced_zero)
         self.carry = carry
+        self.fold = fold or NoFold()
+        self.exit = exit or ModelExit()
         nf = amplitude.layout.nf
+        self.drift = DriftMemory(nf) if exit_to_drift else None
+        """parts.mode0 = "drift": an exit's entry returns to the fault-free value (`DriftMemory`)."""
         self.sentinels = np.zeros((nf, 0), dtype=bool)
         self.last_amplitude = np.zeros((nf, 0))
 
@@ -184,9 +305,13 @@ class MarkovJump:
         self.last_amplitude = A
         before = modes.copy() if self.transition.proposal else None
         carried = self.carry.capture(F)
-        self.sentinels = jump(F, modes, A, avail, self.transition.pi01, self.transition.pi10, v,
-                              self.forced_zero)
+        reset_to = self.drift.update(F, modes, w) if self.drift is not None else None
+        pi10 = self.exit.pi10(F, self.transition.pi10, reset_to)
+        folded = self.fold.capture(F, modes, v, pi10, reset_to)
+        self.sentinels = jump(F, modes, A, avail, self.transition.pi01, pi10, v, self.forced_zero,
+                              reset_to)
         self.carry.apply(X, F, carried)
+        self.fold.apply(X, folded)
         return self.transition.log_weight_correction(before, modes, avail)
 
     def pin(self, X: np.ndarray, modes: np.ndarray) -> None:
@@ -202,4 +327,8 @@ class MarkovJump:
         return modes @ w
 
     def annotate(self, out: StepOutput) -> None:
+        """The transition's annotations; under parts.mode0 = "drift" the fault estimate is the
+        change from the fault-free value (the drift is the sensor's or the model's error, no fault)."""
         self.transition.annotate(out)
+        if self.drift is not None:
+            out.fault_estimate -= self.drift.value

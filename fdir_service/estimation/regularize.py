@@ -128,6 +128,18 @@ def _patterns(code: np.ndarray, nf: int) -> tuple[list[int], list[int]]:
     return groups.tolist(), counts.tolist()
 
 
+POO_CONDITION_MAX = 1e10
+"""Above this condition number the mode-0 block is taken as singular (pinv instead of solve)."""
+
+
+def _solve_or_pinv(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """A^-1 B by solve (bit for bit what logs recorded before the robust monitor replay with), or
+    pinv(A) B where A is (near) singular: mode-0 entries that co-vary exactly (a drifting pair)."""
+    if np.linalg.cond(A) < POO_CONDITION_MAX:
+        return np.linalg.solve(A, B)
+    return np.linalg.pinv(A, hermitian=True) @ B
+
+
 def conditioned_on_mode0(P: np.ndarray, off: list[int]) -> np.ndarray:
     """P (n, n) conditioned on the entries `off` being 0 (Schur complement), those rows and columns
     zeroed; a new array."""
@@ -137,8 +149,7 @@ def conditioned_on_mode0(P: np.ndarray, off: list[int]) -> np.ndarray:
         Poo = P[np.ix_(off, off)]
         Pko = P[np.ix_(keep, off)]
         if np.all(np.diag(Poo) > 1e-300):
-            # pinv, not solve: mode-0 entries that co-vary exactly (a drifting pair) make Poo singular
-            P[np.ix_(keep, keep)] -= Pko @ np.linalg.pinv(Poo, hermitian=True) @ Pko.T
+            P[np.ix_(keep, keep)] -= Pko @ _solve_or_pinv(Poo, Pko.T)
         P[off, :] = 0.0
         P[:, off] = 0.0
     return P

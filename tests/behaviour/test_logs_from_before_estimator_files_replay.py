@@ -20,9 +20,18 @@ def test_legacy_log_opens_with_log_info(capsys):
     assert "/fdir/estimate                            100" in out and "scenario = ch4" in out
 
 
-def test_legacy_log_replays_bit_identically(tmp_path):
+def test_legacy_log_replays_to_the_last_bits_of_another_machine(tmp_path):
+    """Recorded on another machine: OpenBLAS picks its kernels by CPU, so reductions may differ in
+    their last bits (~1e-13 here) across machines; on one machine a replay is bit for bit
+    (tests/e2e: record then replay). Everything the filter said agrees to 1e-9."""
+    from fdir_service.recording.logtools import McapLog
+    from fdir_service.replay import estimate_differences, estimates
+
     r = replay(LEGACY, out=tmp_path / "again.mcap")
-    assert r.same_setup and r.identity.identical and r.frames == 100
+    assert r.same_setup and r.frames == 100
+    diff = estimate_differences(estimates(McapLog(LEGACY)), estimates(McapLog(tmp_path / "again.mcap")))
+    worst = max((v["max_abs"] or 0.0) for v in diff.values())
+    assert len(diff) > 10 and worst < 1e-9, f"replay differs by {worst:g}"
 
 
 def test_legacy_conversion_gives_the_experiment_estimator():

@@ -72,3 +72,28 @@ amplitude = {3.0 * sigma_deg:.3f}
     assert (first[np.arange(P.shape[1]) != j] == -1).all(), "another fault was declared"
     delay = first[j] - onset
     assert 0 <= delay <= int(round(1.0 / sc.dt_s)), f"declared {delay} frames after onset"
+
+
+def test_after_a_gyro_fault_ends_nothing_stays_declared(tmp_path):
+    """A gyro bias corrupts the integrated attitude and so the altitude the kinematic model
+    predicts; the altimeters take part of the blame while it lasts. Once it has ended (and a few
+    seconds for the hysteresis to clear) no fault stands: the altimeters' exits can fold their
+    fault into the altitude (faults.on_exit = "reset_or_fold"), so a blamed altimeter clears."""
+    fault = """
+[[world.faults]]
+id = "q"
+target = "q"
+unit = "deg/s"
+[[world.faults.profile]]
+shape = "step"
+start_s = 20.0
+duration_s = 12.0
+amplitude = 4.0
+random_sign = true
+"""
+    for run_index in (0, 1, 2):
+        sc, traj, P = _fly(tmp_path, "real-calm-faultfree", fault, 70.0, run_index)
+        j = [f.id for f in sc.estimator.faults].index("q")
+        assert _first_declaration(P)[j] >= 0, f"run {run_index}: the gyro fault was never declared"
+        after = traj.t >= 32.0 + 5.0
+        assert P[after].max() < 0.5, f"run {run_index}: P(fault) after the fault {P[after].max(axis=0)}"

@@ -246,3 +246,110 @@ def test_robust_estimator_proposes_gyro_sentinels_from_the_window_and_moves_thei
     assert j >= 0 and list(carry.columns) == [elevator, gyro]
     np.testing.assert_array_equal(carry.B[:, 1], [0, 0, 0, 0, -1])   # f_q up by dA: q down by dA
     assert carry.B[4, 0] < 0 and carry.B[:3, 0].tolist() == [0, 0, 0]  # the elevator moves q
+
+
+def test_exit_fold_moves_the_state_by_what_keeps_the_sensors_prediction(robust):
+    from fdir_service.estimation.jump import ExitFold
+
+    f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
+    fold = f.parts.jump.fold
+    assert isinstance(fold, ExitFold)
+    ids = [x.id for x in robust.faults]
+    assert [ids[j] for j in fold.columns] == ["gnss", "baro", "theta", "q"]   # on_exit = "reset_or_fold"
+    H = f.meas.H[:, :5]
+    for j in fold.columns:
+        r = f.meas.names.index(robust.faults[j].target)
+        assert H[r] @ fold.G[:, j] == pytest.approx(1.0)                  # this row's prediction kept
+    np.testing.assert_array_equal(fold.G[:, ids.index("de")], 0.0)     # actuators never fold
+
+
+def test_half_the_exits_fold_the_altimeter_fault_into_the_altitude(robust):
+    f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=2000)
+    jump = f.parts.jump
+    ids = [x.id for x in robust.faults]
+    b = ids.index("baro")
+    X = np.zeros((5 + len(ids), 2000))
+    X[0] = -500.0                                        # p_d: 500 m up
+    X[5 + b] = 3.0                                       # the baro reads 3 m high, in mode 1
+    modes = np.zeros((len(ids), 2000), bool)
+    modes[b] = True
+    v = np.random.default_rng(1).random(modes.shape)
+    pi10 = np.ones((len(ids), 1))                        # every particle exits this step
+    folded = jump.fold.capture(X[5:], modes, v, pi10)
+    X[5:][modes] = 0.0                                   # what the jump does to an exit
+    jump.fold.apply(X, folded)
+    r = f.meas.names.index("baro_alt")
+    pred = f.meas.H[r] @ X
+    kept = np.isclose(pred, 503.0)                       # folded: the altitude moved, the reading kept
+    reset = np.isclose(pred, 500.0)                      # reset: the fault ended
+    assert (kept | reset).all()
+    assert kept.mean() == pytest.approx(0.5, abs=0.04)
+
+
+def test_an_actuator_fault_cannot_fold():
+    doc = _robust_doc()
+    doc["faults"][-1]["on_exit"] = "reset_or_fold"
+    with pytest.raises(ConfigError, match="on_exit"):
+        parse_estimator(doc)
+
+
+def test_a_faint_mode1_fault_exits_faster_than_a_clear_one():
+    from fdir_service.estimation.jump import FaintExit, ModelExit
+
+    F = np.array([[0.001, -0.002, 0.05, -0.03]])          # theta faults, rad; noise sigma 0.015
+    pi10 = np.array([0.01])
+    np.testing.assert_array_equal(ModelExit().pi10(F, pi10), [[0.01]])
+    faint = FaintExit(np.array([0.015]), 0.05)
+    np.testing.assert_array_equal(faint.pi10(F, pi10), [[0.05, 0.05, 0.01, 0.01]])
+
+
+def test_pi10_faint_is_read_and_builds_a_faint_exit(robust):
+    from fdir_service.estimation.jump import FaintExit, ModelExit
+
+    assert robust.settings.pi10_faint == pytest.approx(0.05)
+    f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
+    assert isinstance(f.parts.jump.exit, FaintExit)
+    np.testing.assert_allclose(f.parts.jump.exit.threshold[:, 0], f.parts.jump.amplitude.sigma)
+    thesis = build_filter("RJMRPF", load_estimator("aerosonde"), np.random.default_rng(0), particles=50)
+    assert isinstance(thesis.parts.jump.exit, ModelExit)
+
+
+def test_drift_memory_keeps_the_fault_free_value_through_a_fault():
+    from fdir_service.estimation.jump import DriftMemory, mode0_mean
+
+    N = 1000
+    w = np.full(N, 1.0 / N)
+    F = np.full((1, N), 0.016)                           # an elevator mis-trim of 0.9 deg in mode 0
+    modes = np.zeros((1, N), bool)
+    mem = DriftMemory(1)
+    assert mem.update(F, modes, w)[0] == pytest.approx(0.016)
+    modes[0, :950] = True                                # a fault: 95 % of the weight in mode 1 ...
+    F[0, :950] = 0.07
+    F[0, 950:] = 0.0                                     # ... and the few mode-0 particles left wrong
+    mean, share = mode0_mean(F, modes, w)
+    assert mean[0] == pytest.approx(0.0) and share[0] == pytest.approx(0.05)
+    assert mem.update(F, modes, w)[0] == pytest.approx(0.016)   # not taken: mode 0 is a minority
+
+
+def test_under_drift_an_exit_returns_to_the_fault_free_value_and_the_estimate_is_the_change(robust):
+    f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=1000)
+    jump = f.parts.jump
+    assert jump.drift is not None
+    de = [x.id for x in robust.faults].index("de")
+    jump.drift.value[de] = 0.016
+    F = np.full((len(robust.faults), 1000), 0.0)
+    F[de] = 0.016
+    modes = np.zeros_like(F, dtype=bool)
+    modes[de, :500] = True
+    F[de, :500] = 0.07
+    v = np.zeros_like(F)                                 # every mode-1 particle exits
+    from fdir_service.estimation.jump import jump as jump_fn
+    pi = np.zeros(len(robust.faults))
+    jump_fn(F, modes, F.copy(), np.ones(len(robust.faults), bool), pi, pi + 1.0, v, False,
+            jump.drift.value)
+    np.testing.assert_allclose(F[de], 0.016)
+    from fdir_service.estimation.base import StepOutput
+    out = StepOutput(0.0, np.zeros(10), None, tuple(x.id for x in robust.faults), F.mean(axis=1),
+                     np.zeros(5), 1000.0, False)
+    jump.annotate(out)
+    assert out.fault_estimate[de] == pytest.approx(0.0)

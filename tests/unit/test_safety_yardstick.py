@@ -59,7 +59,8 @@ def test_one_false_alarm_in_ten_fault_free_minutes_is_six_per_hour():
 
 def test_detection_delay_isolation_and_the_grace_period():
     """theta injected 30-40 s; theta declared 0.5 s after onset (isolated right); a q declaration
-    2 s after the end is inside the grace period (no false alarm); a q declaration at 60 s is one;
+    1 s after the end, cleared 1.5 s later, is inside the grace period (no false alarm); a q
+    declaration at 60 s is one;
     an unmonitored elevator fault at 70-80 s gets q declared: mis-isolated."""
     t = _t(100.0)
     world = np.zeros((t.size, 2))
@@ -67,7 +68,7 @@ def test_detection_delay_isolation_and_the_grace_period():
     world[(t >= 70) & (t < 80), 1] = 0.05
     p = np.zeros((t.size, 2))                                   # monitored: theta, q
     p[(t >= 30.3) & (t < 40), 0] = 1.0
-    p[(t >= 42.0) & (t < 43), 1] = 1.0
+    p[(t >= 41.0) & (t < 41.5), 1] = 1.0
     p[(t >= 60.0) & (t < 61), 1] = 1.0
     p[(t >= 71.0) & (t < 73), 1] = 1.0
     y = pool([run_yardstick(t, p, ["theta", "q"], world, ["theta", "de"], RULE)], ["theta", "de"])
@@ -95,3 +96,21 @@ def test_roc_trades_false_alarms_for_detections():
     assert roc[0.8]["false_alarms_per_hour"] == 0 and roc[0.8]["detection_fraction"] == 1.0
     assert roc[0.9]["false_alarms_per_hour"] == 0 and roc[0.9]["detection_fraction"] == 0.0
     assert y["detection_fraction"] == 0.0 and y["p_declare"] == 0.9
+
+
+def test_a_declaration_that_outlives_its_fault_into_fault_free_time_is_a_false_alarm():
+    """theta injected 30-40 s; the baro is declared from 35 s (sympathetically) and stays declared
+    to 70 s: inside the fault's time it is no false alarm, standing in the fault-free time after
+    the grace period it is one, and its 27 s there are falsely declared time."""
+    t = _t(100.0)
+    world = np.zeros((t.size, 1))
+    world[(t >= 30) & (t < 40), 0] = 0.1
+    p = np.zeros((t.size, 2))                                   # monitored: theta, baro
+    p[(t >= 30.3) & (t < 40), 0] = 1.0
+    p[(t >= 35.0) & (t < 70), 1] = 1.0
+    y = pool([run_yardstick(t, p, ["theta", "baro"], world, ["theta"], RULE)], ["theta"])
+    assert y["false_alarms"] == 1
+    assert y["detected"] == 1 and y["isolation_accuracy"] == 1.0
+    quiet_s = 100.0 - 10.0 - GRACE_S
+    declared_s = 70.0 + 1.0 - (40.0 + GRACE_S)                # cleared 1 s (clear hold) after 70 s
+    assert y["falsely_declared_fraction"] == pytest.approx(declared_s / quiet_s, abs=0.01)
