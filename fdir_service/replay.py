@@ -54,6 +54,8 @@ def recorded_setup(log: McapLog) -> dict[str, Any]:
     legacy = next((cfg[k] for k in _LEGACY_SCENARIO_KEYS if k in cfg), None)
     estimator = json.loads(cfg["estimator_json"]) if cfg.get("estimator_json") else None
     out: dict[str, Any] = {"service_toml": service, "estimator_doc": estimator, "legacy_scenario": legacy}
+    out["autopilot"] = cfg.get("autopilot") or "none"
+    out["autopilot_profiles"] = json.loads(cfg.get("autopilot_profiles_json") or "{}")
     out["filter"] = cfg.get("filter")
     out["particles"] = int(cfg["particles"]) if cfg.get("particles") not in (None, "") else None
     out["seed"] = int(cfg["seed"]) if cfg.get("seed") not in (None, "") else None
@@ -211,6 +213,10 @@ def build_pipeline(setup: dict[str, Any], *, filter_name: str | None, particles:
     else:
         config = ServiceConfig.from_toml_text(setup["service_toml"], estimator_doc=setup.get("estimator_doc"),
                                               source="<recorded config>")
+    if setup.get("autopilot", "none") != "none":
+        from fdir_service.autopilot_profile import select_autopilot
+
+        config = select_autopilot(config, setup["autopilot"], setup.get("autopilot_profiles") or {})
     kw = {} if filter_factory is None else {"filter_factory": filter_factory}
     return Pipeline(config, filter_name=filter_name, particles=particles, seed=seed, observers=observers,
                     **kw)

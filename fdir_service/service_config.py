@@ -31,6 +31,7 @@ from fdir_service.estimator_config import (
 from fdir_service.paths import service_path
 from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, Check, TomlTable
 
+STAMPS = ("message", "unwrap32", "latest", "arrival")
 TRANSFORMS = ("none", "negate", "pressure_to_altitude", "pwm", "differential_pressure_to_airspeed")
 RHO_SEA_LEVEL = 1.225
 """kg/m^3: a pitot's differential pressure (Pa) reads as the indicated airspeed sqrt(2 dp / rho_0)."""
@@ -69,6 +70,18 @@ class FieldMap:
     frozen_s: float = 0.0
     """A measurement whose value stays bit-identical this long (message time) is frozen: masked and
     reported (0 = never; inputs are never checked, a constant throttle is normal)."""
+    derive: str = ""
+    """A derivation of `runtime.derived.DERIVATIONS` (then `field` is empty and the raw value is
+    derived from `message`, the sample, and the other `sources`); "" = read `field`."""
+    sources: tuple[str, ...] = ()
+    options: tuple[tuple[str, float], ...] = ()
+    """The derivation's options (name, value), e.g. (("function", 19.0), ("max_deflection_deg", 25.0))."""
+    stamp: str = "message"
+    """Where the message's time comes from: "message" (its time_usec / time_boot_ms), "unwrap32" (a
+    uint32 time_usec that wraps every 71.6 min, unwrapped against the latest stamp seen), "latest"
+    (a message without a timestamp, e.g. VFR_HUD: the latest stamp seen on the link) or "arrival"
+    (a message whose own stamp lags its arrival, e.g. ArduPilot's GPS_RAW_INT stamped with the fix
+    time: the latest stamp seen, and a repeat of the previous own stamp is dropped)."""
 
     def convert(self, raw: float) -> float:
         """Raw field value -> SI value (NaN for a non-numeric or impossible raw value)."""
@@ -171,6 +184,16 @@ class ServiceConfig:
     record: RecordConfig = field(default_factory=RecordConfig)
     text: str = ""
     source: str = "<text>"
+    autopilot: str = "none"
+    """The autopilot profile in force (`fdir run --autopilot`): "none" (this file's mapping), a
+    profile name ("ardupilot": its mapping replaced `measurements` and `inputs`), or "auto" (this
+    file's mapping until the autopilot's HEARTBEAT picks one of `auto_profiles`)."""
+    parameters: tuple[tuple[str, float], ...] = ()
+    """The profile's autopilot parameter defaults (name, value); PARAM_VALUE messages replace them."""
+    auto_profiles: tuple[tuple[int, ServiceConfig], ...] = ()
+    """For "auto": (HEARTBEAT.autopilot, the config with that profile applied)."""
+    profile_texts: tuple[tuple[str, str], ...] = ()
+    """(profile name, TOML text) of every profile loaded, recorded so `fdir replay` rebuilds them."""
 
     @property
     def frame_period_us(self) -> int:
@@ -235,7 +258,8 @@ def load_service_config(path: str | Path | None = None, *, estimator: str | None
 
 # ----------------------------------------------------------------------------- validation
 
-def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
+def _message_class(t: TomlTable):
+    """The dialect class of the table's `message`."""
     from fdir_service.mavlink import dialect
 
     msg_name = t.take("message", "string")
@@ -243,6 +267,11 @@ def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
     if cls is None or msg_name != msg_name.upper():
         raise ConfigError(f"{t.key('message')}: {msg_name!r} is not a MAVLink message of the "
                           "fdir dialect (use the upper-case name, e.g. GPS_RAW_INT)")
+    return msg_name, cls
+
+
+def _field_spec(t: TomlTable, msg_name: str, cls) -> tuple[str, int | None]:
+    """(field, array index or None) of the table's `field`."""
     spec = t.take("field", "string")
     m = _FIELD_RE.match(spec)
     if not m or m.group(1) not in cls.fieldnames:
@@ -254,10 +283,38 @@ def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
         raise ConfigError(f"{t.key('field')}: {fname} "
                           + (f"is an array of {alen}: write {fname}[i], 0 <= i < {alen}" if alen
                              else "is not an array"))
-    if not {"time_boot_ms", "time_usec"} & set(cls.fieldnames):
+    return fname, idx
+
+
+def _stamp(t: TomlTable, msg_name: str, cls) -> str:
+    """The table's `stamp`; a message without a timestamp needs stamp = "latest"."""
+    stamp = t.take("stamp", "string", "message", choices=STAMPS)
+    if stamp != "latest" and not {"time_boot_ms", "time_usec"} & set(cls.fieldnames):
         raise ConfigError(f"{t.key('message')}: {msg_name} carries no time_boot_ms/time_usec "
-                          "timestamp, so it cannot be placed in a frame")
-    transform = t.take("transform", "string", "none", choices=TRANSFORMS)
+                          "timestamp, so it cannot be placed in a frame (stamp = \"latest\" borrows "
+                          "the latest timestamp seen on the link)")
+    return stamp
+
+
+def _derivation(t: TomlTable, msg_name: str) -> dict[str, Any]:
+    """`derive`, `sources` and the derivation's options of a derived row (FieldMap keywords)."""
+    from fdir_service.runtime.derived import DERIVATIONS
+
+    name = t.take("derive", "string", choices=tuple(DERIVATIONS))
+    d = DERIVATIONS[name]
+    if msg_name != d.sources[0]:
+        raise ConfigError(f"{t.key('message')}: derivation {name!r} samples {d.sources[0]}, got {msg_name!r}")
+    sources = t.take("sources", "strings", check=Check(lambda v: tuple(v) == d.sources,
+                                                       f"{list(d.sources)} (what {name} reads)"))
+    options = []
+    for opt, (default, expect, test) in d.options.items():
+        kind_default = {} if default is None else {"default": default}
+        options.append((opt, t.take(opt, "number", **kind_default, check=Check(test, expect))))
+    return {"derive": name, "sources": tuple(sources), "options": tuple(options)}
+
+
+def _range(t: TomlTable, transform: str) -> dict[str, Any]:
+    """The PWM scaling or the valid range (FieldMap keywords)."""
     kw: dict[str, Any] = {}
     if transform == "pwm":
         kw["pwm_min"] = t.take("pwm_min", "number", 1000.0)
@@ -269,6 +326,10 @@ def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
         kw["min"] = t.take("valid_min", "number", -math.inf)
         kw["max"] = t.take("valid_max", "number", math.inf,
                            check=Check(lambda v: v > kw["min"], "a value above valid_min"))
+    return kw
+
+
+def _where(t: TomlTable, msg_name: str, cls) -> tuple[tuple[str, float], ...]:
     wt = t.sub("where")
     where = []
     for wk in wt.keys():
@@ -276,11 +337,23 @@ def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
             raise ConfigError(f"{wt.key(wk)}: {wk!r} is not a field of {msg_name}")
         where.append((wk, wt.take(wk, "number")))
     wt.finish()
+    return tuple(where)
+
+
+def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
+    msg_name, cls = _message_class(t)
+    if t.peek("derive") is not None:
+        fname, idx, kw = "", None, _derivation(t, msg_name)
+    else:
+        (fname, idx), kw = _field_spec(t, msg_name, cls), {}
+    kw["stamp"] = _stamp(t, msg_name, cls)
+    transform = t.take("transform", "string", "none", choices=TRANSFORMS)
+    kw.update(_range(t, transform))
     fm = FieldMap(
         name=name, message=msg_name, field=fname, index=idx,
         scale=t.take("scale", "number", 1.0, check=Check(lambda v: v != 0, "a non-zero number")),
         offset=t.take("offset", "number", 0.0), transform=transform,
-        where=tuple(where),
+        where=_where(t, msg_name, cls),
         stale_s=t.take("stale_s", "number", 1.0, check=POSITIVE.saying("a positive time (s)")),
         frozen_s=(0.0 if is_input else t.take("frozen_s", "number", 0.0,
                                                check=NON_NEGATIVE.saying("a time >= 0 (s; 0 = off)"))),
@@ -288,6 +361,30 @@ def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
     )
     t.finish()
     return fm
+
+
+def parse_mappings(root: TomlTable,
+                   est: EstimatorConfig) -> tuple[tuple[FieldMap, ...], tuple[FieldMap, ...]]:
+    """The `[measurements.<row>]` (one per estimator row, in its order) and `[inputs.<name>]` (both
+    actuators) tables of a service file or an autopilot profile."""
+    mt = root.sub("measurements")
+    maps = {k: _field_map(mt.sub(k), k, False) for k in mt.keys()}
+    mt.finish()
+    missing = [m for m in est.measurements if m not in maps]
+    if missing:
+        raise ConfigError(f"measurements.{missing[0]}: missing; estimator {est.id!r} measures "
+                          f"{', '.join(est.measurements)} and each needs a mapping")
+    it = root.sub("inputs")
+    imaps = {}
+    for k in it.keys():
+        if k not in ACTUATORS:
+            raise ConfigError(f"inputs.{k}: unknown input; expected {', '.join(ACTUATORS)}")
+        imaps[k] = _field_map(it.sub(k), k, True)
+    it.finish()
+    for a in ACTUATORS:
+        if a not in imaps:
+            raise ConfigError(f"inputs.{a}: missing; the filter needs both {', '.join(ACTUATORS)}")
+    return tuple(maps[m] for m in est.measurements), tuple(imaps[a] for a in ACTUATORS)
 
 
 def _estimator(s: TomlTable, estimator_doc: dict[str, Any] | None) -> EstimatorConfig:
@@ -360,26 +457,7 @@ def _parse(doc: dict[str, Any], text: str, estimator_doc: dict[str, Any] | None,
     )
     pb.finish()
 
-    mt = root.sub("measurements")
-    maps = {k: _field_map(mt.sub(k), k, False) for k in mt.keys()}
-    mt.finish()
-    missing = [m for m in est.measurements if m not in maps]
-    if missing:
-        raise ConfigError(f"measurements.{missing[0]}: missing; estimator {est.id!r} measures "
-                          f"{', '.join(est.measurements)} and each needs a mapping")
-    measurements = tuple(maps[m] for m in est.measurements)
-
-    it = root.sub("inputs")
-    imaps = {}
-    for k in it.keys():
-        if k not in ACTUATORS:
-            raise ConfigError(f"inputs.{k}: unknown input; expected {', '.join(ACTUATORS)}")
-        imaps[k] = _field_map(it.sub(k), k, True)
-    it.finish()
-    for a in ACTUATORS:
-        if a not in imaps:
-            raise ConfigError(f"inputs.{a}: missing; the filter needs both {', '.join(ACTUATORS)}")
-    inputs = tuple(imaps[a] for a in ACTUATORS)
+    measurements, inputs = parse_mappings(root, est)
 
     hs = root.sub("health")
     health = HealthConfig(

@@ -35,6 +35,7 @@ EPILOG = """\
 examples:
   fdir run                                          # config/service/default.toml: udpin:127.0.0.1:14550
   fdir run --estimator my-aircraft.toml             # another airframe / noise / fault set
+  fdir run --autopilot ardupilot --master /dev/ttyAMA0,921600   # next to a stock ArduPlane
   fdir run --master udpin:0.0.0.0:14550 --gcs udpout:192.168.1.10:14550
   fdir run --filter RJMRPF --particles 500 --record flight.mcap
   fdir run --no-record                              # default: records into recordings/
@@ -56,6 +57,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--estimator", metavar="NAME|FILE", default=None,
                    help="estimator file, by name in config/estimators/ or path "
                         "(default: service.estimator in the config, else aerosonde)")
+    p.add_argument("--autopilot", metavar="NAME", default="none",
+                   help="the autopilot's message profile: ardupilot (config/autopilots/ardupilot.toml), "
+                        "auto (ardupilot if the autopilot's HEARTBEAT says MAV_AUTOPILOT_ARDUPILOTMEGA, "
+                        "else none; nothing is monitored before that HEARTBEAT), none (the config's own "
+                        "[measurements] and [inputs], the default), px4 (not written yet), or a profile "
+                        "file. See docs/autopilots.md")
     p.add_argument("--master", metavar="URL", default=None,
                    help="the autopilot link to listen on (default: link.master in the config)")
     p.add_argument("--gcs", metavar="URL", action="append", default=None,
@@ -81,12 +88,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fdir_service.autopilot_profile import select_autopilot
     from fdir_service.daemon import Daemon
     from fdir_service.errors import ConfigError
     from fdir_service.pipeline import Pipeline
     from fdir_service.service_config import load_service_config
 
-    config = load_service_config(args.config, estimator=args.estimator)
+    config = select_autopilot(load_service_config(args.config, estimator=args.estimator), args.autopilot)
     if args.particles is not None and args.particles <= 0:
         raise ConfigError(f"--particles: expected a positive number, got {args.particles}")
     observers = []

@@ -308,3 +308,16 @@ class PipelineClosed(Event):
     def text(self) -> str:
         summary = ", ".join(f"{k} {v}" for k, v in self.counts) or "none"
         return f"pipeline closed after {self.frames} frames; rejected input: {summary}"
+
+
+@dataclass(frozen=True)
+class AutopilotSelected(Event):
+    """`--autopilot auto`: the autopilot's first HEARTBEAT (its MAV_AUTOPILOT value `heartbeat`)
+    chose the profile `profile` ("none": the service file's own mapping)."""
+
+    profile: str
+    heartbeat: int
+
+    @property
+    def text(self) -> str:
+        return f"autopilot profile {self.profile} (HEARTBEAT autopilot {self.heartbeat})"

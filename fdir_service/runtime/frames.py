@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fdir_service.runtime.derived import SourceCache, derive_value
 from fdir_service.runtime.events import (
     Event,
     FramesMissing,
@@ -37,6 +38,7 @@ from fdir_service.runtime.screening import (
     TIME_JUMP,
     FrozenRows,
     Rejections,
+    checked_value,
     field_value,
     matches_where,
     message_time_us,
@@ -51,6 +53,14 @@ LATE_WINDOW_FRAMES = 100
 are late (dropped, counted); further back is a time jump."""
 INPUT_HISTORY = 8
 """Values kept per input channel (frame index, value)."""
+WRAP32_US = 1 << 32
+"""A uint32 time_usec (e.g. ArduPilot's SERVO_OUTPUT_RAW) wraps every 2^32 us (71.6 min)."""
+
+
+def unwrap32(raw_us: int, reference_us: int) -> int:
+    """The time raw_us + n 2^32 (us) nearest reference_us (the latest full timestamp seen)."""
+    n = (reference_us - raw_us + WRAP32_US // 2) // WRAP32_US
+    return raw_us + n * WRAP32_US
 
 
 class KindRates:
@@ -124,13 +134,15 @@ class Route:
     """Where one mapped field of a message goes: a measurement row ("y") or an input channel
     ("u") j, with its FieldMap, `where` filter and the rejections it can cause."""
 
-    __slots__ = ("kind", "j", "fm", "where", "out_of_range", "late", "frozen")
+    __slots__ = ("kind", "j", "fm", "where", "out_of_range", "late", "frozen", "options", "underived")
 
     def __init__(self, kind: str, j: int, fm: FieldMap) -> None:
         self.kind, self.j, self.fm, self.where = kind, j, fm, fm.where
         self.out_of_range = Rejected("out of range", fm.name)
         self.late = Rejected("late", fm.name)
         self.frozen = Rejected("frozen", fm.name)
+        self.options = dict(fm.options)
+        self.underived = Rejected("not derivable", fm.name)
 
 
 def routes_by_message(config: ServiceConfig) -> dict[str, list[Route]]:
@@ -258,6 +270,13 @@ class FrameAssembler:
         self.frozen = FrozenRows(config.measurements, self.events)
         self._jump: tuple[int, int] | None = None   # (candidate frame, messages agreeing)
         self._restart = False
+        # derived rows: the messages they read besides their sample, message stamps, the latest stamp
+        maps = config.measurements + config.inputs
+        self.observed = frozenset(s for fm in maps if fm.derive for s in fm.sources[1:])
+        self.sources = SourceCache(dict(config.parameters))
+        self.stamps = {fm.message: fm.stamp for fm in maps if fm.stamp != "message"}
+        self.latest_us: int | None = None
+        self._own_stamps: dict[str, int] = {}   # stamp = "arrival": each type's last own stamp
 
     @staticmethod
     def _kind(fm: FieldMap) -> str:
@@ -305,18 +324,21 @@ class FrameAssembler:
         self.inputs.clear()
         self.stale.forget()
         self.first_time_us = None
+        self.sources.forget_time()
+        self.latest_us = None
         self._restart = True
 
     # ------------------------------------------------------------------ messages
     def accept(self, msg) -> list[AssembledFrame]:
         """Take one decoded message; return the frames it completes (oldest first)."""
         mtype = msg.get_type()
+        if mtype in self.observed:
+            self.sources.observe(msg, message_time_us(msg))
         routes = self.by_message.get(mtype)
         if not routes:
             return []
-        t_us = message_time_us(msg)
+        t_us = self._time_us(msg, mtype)
         if t_us is None:
-            self.rejected.add(NO_TIMESTAMP)
             return []
         is_meas = self.plain.get(mtype)
         matched = routes if is_meas is not None else self._matching(msg, routes)
@@ -326,9 +348,9 @@ class FrameAssembler:
         if is_meas is None:
             is_meas = any(r.kind == "y" for r in matched)
         k = (t_us + self.period_us // 2) // self.period_us   # frame_index(t_us)
-        if not self._in_clock(k):
+        if not self._placed(k, t_us, mtype):
             return []
-        self._take_inputs(msg, matched, k)
+        self._take_inputs(msg, matched, k, t_us)
         if self.last_index is not None and k <= self.last_index:
             if is_meas:
                 self._count_late(k, t_us)
@@ -338,20 +360,70 @@ class FrameAssembler:
             out += self._take_measurements(msg, matched, k, t_us)
         return out
 
+    def _placed(self, k: int, t_us: int, mtype: str) -> bool:
+        """Whether frame k is in the clock (`_in_clock`); the latest stamp moves on. A message with a
+        borrowed stamp (stamp = "latest") is in the clock by construction and plays no part in
+        confirming a time jump."""
+        if self.stamps.get(mtype) in ("latest", "arrival"):
+            return True
+        if not self._in_clock(k):
+            return False
+        if self.latest_us is None or t_us > self.latest_us:
+            self.latest_us = t_us
+        return True
+
+    def _time_us(self, msg, mtype: str) -> int | None:
+        """The message's time (us) by its mapping's `stamp`: its own, unwrapped, or borrowed (the
+        latest stamp seen); None (counted) when it has none or repeats the sample before it."""
+        stamp = self.stamps.get(mtype)
+        t = message_time_us(msg) if stamp != "latest" else self.latest_us
+        if t is None:
+            self.rejected.add(NO_TIMESTAMP)
+        elif stamp == "unwrap32" and self.latest_us is not None:
+            t = unwrap32(t, self.latest_us)
+        elif stamp == "arrival":
+            t = self._arrival(mtype, t)
+        return t
+
+    def _arrival(self, mtype: str, own_us: int) -> int | None:
+        """stamp = "arrival": the latest stamp seen, unless the message repeats its previous own stamp
+        (the same sample sent again: dropped, counted)."""
+        if self._own_stamps.get(mtype) == own_us:
+            self.rejected.add(Rejected("repeated sample", mtype))
+            return None
+        self._own_stamps[mtype] = own_us
+        if self.latest_us is None:
+            self.rejected.add(NO_TIMESTAMP)
+        return self.latest_us
+
+    def _value(self, msg, r: Route, t_us: int) -> float | None:
+        """Route r's SI value of the message (read or derived) if valid; None (counted) if not."""
+        if not r.fm.derive:
+            v = field_value(msg, r.fm)
+            if v is None:
+                self.rejected.add(r.out_of_range)
+            return v
+        raw = derive_value(r.fm.derive, msg, t_us, self.sources, r.options)
+        if raw != raw:   # NaN: a source is missing or too old
+            self.rejected.add(r.underived)
+            return None
+        v = checked_value(r.fm, raw)
+        if v is None:
+            self.rejected.add(r.out_of_range)
+        return v
+
     @staticmethod
     def _matching(msg, routes: list[Route]) -> list[Route]:
         """The routes whose where-filter the message passes."""
         return [r for r in routes if matches_where(msg, r.where)]
 
-    def _take_inputs(self, msg, routes: list[Route], k: int) -> None:
+    def _take_inputs(self, msg, routes: list[Route], k: int, t_us: int) -> None:
         """Record the message's input values (u) for frame k; bad or late ones are counted."""
         for r in routes:
             if r.kind != "u":
                 continue
-            v = field_value(msg, r.fm)
-            if v is None:
-                self.rejected.add(r.out_of_range)
-            elif not self.inputs.record(r.j, k, v):
+            v = self._value(msg, r, t_us)
+            if v is not None and not self.inputs.record(r.j, k, v):
                 self.rejected.add(r.late)
 
     def _count_late(self, k: int, t_us: int) -> None:
@@ -380,9 +452,8 @@ class FrameAssembler:
 
     def _take_row(self, msg, r: Route, part: _Partial, t_us: int) -> None:
         """Row r's value into the partial frame, unless out of range or frozen (counted)."""
-        v = field_value(msg, r.fm)
+        v = self._value(msg, r, t_us)
         if v is None:
-            self.rejected.add(r.out_of_range)
             return
         self.stale.seen(r.j, t_us)
         if self.frozen.watched(r.j) and self.frozen.check(r.j, v, t_us):

@@ -45,6 +45,7 @@ from fdir_service.estimation.base import Filter, StepOutput
 from fdir_service.estimator_config import EstimatorConfig
 from fdir_service.mavlink import dialect, dialect_text, new_mavlink
 from fdir_service.runtime.events import (
+    AutopilotSelected,
     Event,
     FilterStepFailed,
     HealthProblem,
@@ -52,6 +53,7 @@ from fdir_service.runtime.events import (
     LinkRegained,
     PipelineClosed,
     Reinitialised,
+    Rejected,
 )
 from fdir_service.runtime.frames import AssembledFrame, FrameAssembler
 from fdir_service.runtime.health import INPUT_RESUMED, NON_FINITE, EstimatorHealth, filter_raised
@@ -67,6 +69,7 @@ PARTICLES_TOP_K = 20
 SIGNING_EPOCH_UNIX_S = 1420070400  # MAVLink 2 signing timestamps: 10 us units since 2015-01-01 UTC
 FilterFactory = Callable[..., Filter]
 """(name, estimator config, rng, particles[, x0=(5,) airframe state]) -> Filter."""
+BEFORE_HEARTBEAT = Rejected("before the autopilot's HEARTBEAT (--autopilot auto)")
 LATENCY_WINDOW = 12_000
 """Step latencies kept (`Pipeline.latencies`, the last 10 min at 20 Hz)."""
 
@@ -130,6 +133,8 @@ class Pipeline:
         self.publisher = Publisher(config.publish, self.estimator.faults, self.mav_out, self.adaptive)
         # the runtime parts
         self.assembler = FrameAssembler(config, trim_input(self.estimator))
+        # --autopilot auto: HEARTBEAT.autopilot -> config, until the first HEARTBEAT chose one
+        self._auto = dict(config.auto_profiles) if config.autopilot == "auto" else None
         self.rejected = Rejections()
         self.screen = MessageScreen()
         self.source = SourceFilter(config.component, config.autopilot_system or None,
@@ -156,6 +161,21 @@ class Pipeline:
         """The autopilot's MAVLink system followed (None until the first one is seen)."""
         return self.source.system
 
+    def _select_autopilot(self, msg, t_ns: int) -> bool:
+        """`--autopilot auto`: drop (count) everything before the followed autopilot's HEARTBEAT;
+        that HEARTBEAT picks the profile of its MAV_AUTOPILOT value, else the service file's mapping."""
+        if msg.get_type() != "HEARTBEAT" or msg.autopilot == dialect.MAV_AUTOPILOT_INVALID:
+            self.rejected.add(BEFORE_HEARTBEAT)
+            return False
+        chosen = self._auto.get(int(msg.autopilot)) if self._auto else None
+        self._auto = None
+        if chosen is not None:
+            self.assembler = FrameAssembler(chosen, trim_input(self.estimator))
+            self.source.is_mapped = self.assembler.is_mapped
+        self._emit(AutopilotSelected(chosen.autopilot if chosen is not None else "none",
+                                     int(msg.autopilot)), t_ns)
+        return True
+
     def _follow_system(self, system: int) -> None:
         self.mav_out.srcSystem = system
 
@@ -173,6 +193,9 @@ class Pipeline:
                "estimator": self.estimator.id, "filter": self.filter_name,
                "particles": str(self.particles), "seed": str(self.seed),
                "source": self.config.source}
+        if self.config.autopilot != "none":
+            cfg["autopilot"] = self.config.autopilot
+            cfg["autopilot_profiles_json"] = json.dumps(dict(self.config.profile_texts), sort_keys=True)
         versions = {"fdir_service": __version__, "python": platform.python_version(),
                     "numpy": np.__version__, "pymavlink": getattr(pymavlink, "__version__", "?"),
                     "dialect_fdir_estimate_crc_extra": str(dialect.MAVLink_fdir_estimate_message.crc_extra)}
@@ -241,6 +264,10 @@ class Pipeline:
         for msg in self.mav_in.parse_buffer(data) or []:
             if not self._admit(msg):
                 continue
+            if self._auto is not None:
+                if not self._select_autopilot(msg, t_ns):
+                    continue
+                assembler = self.assembler
             self.accepted_messages += 1
             for ob in observers:
                 ob.on_message(msg, t_ns)

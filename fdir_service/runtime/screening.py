@@ -217,6 +217,15 @@ def field_value(msg, fm: FieldMap) -> float | None:
     return v if math.isfinite(v) and fm.min <= v <= fm.max else None
 
 
+def checked_value(fm: FieldMap, raw: float) -> float | None:
+    """fm.convert(raw) (SI) if finite and within [fm.min, fm.max], else None ("out of range")."""
+    try:
+        v = fm.convert(raw)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return v if math.isfinite(v) and fm.min <= v <= fm.max else None
+
+
 class FrozenRows:
     """Rows that hold a bit-identical value for their frozen_s (message time) are frozen: their
     values are dropped ("<row> frozen") until it changes. Announces both (`events`)."""

@@ -1,0 +1,119 @@
+"""A stock ArduPlane-like stream (HEARTBEAT autopilot 3, ATTITUDE, GLOBAL_POSITION_INT, RAW_IMU,
+SCALED_PRESSURE, GPS_RAW_INT at 5 Hz, VFR_HUD without a timestamp, SERVO_OUTPUT_RAW PWM, a
+PARAM_VALUE) fed as bytes through `fdir run --autopilot auto`'s pipeline gives frames whose rows
+are all there and finite: u, w derived from the NED velocity and the attitude, the elevator in
+radians from PWM. Missing attitude never yields a NaN row."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from fdir_service.atmosphere import pressure_from_altitude
+from fdir_service.autopilot_profile import select_autopilot
+from fdir_service.mavlink import dialect, new_mavlink
+from fdir_service.pipeline import Pipeline
+from fdir_service.runtime.events import AutopilotSelected
+from fdir_service.service_config import load_service_config
+from tests.helpers.service import fake_factory
+from tests.helpers.streams import Events
+
+ROLL, PITCH, YAW = 0.1, 0.05, 1.0
+U, W = 40.0, 2.0
+DELTA_E, DELTA_T = -0.05, 0.6     # rad (trailing edge up), throttle fraction
+
+
+def body_to_ned(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll), written out by hand."""
+    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
+                              math.cos(yaw), math.sin(yaw))
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    return rz @ ry @ rx
+
+
+def ardupilot_bytes(seconds: float = 3.0, attitude: bool = True) -> bytes:
+    """The stream of a 20 Hz ArduPlane telemetry loop starting at boot time 1 s."""
+    mav = new_mavlink(1, 1)
+    vn, ve, vd = body_to_ned(ROLL, PITCH, YAW) @ np.array([U, 0.0, W]) * 100.0   # cm/s
+    pwm_e = round(1500 + 400 * (-DELTA_E) / math.radians(25.0))    # ArduPilot: + = nose up
+    pwm_t = round(1100 + 800 * DELTA_T)
+    press = pressure_from_altitude(500.0) / 100.0
+    out = [dialect.MAVLink_param_value_message(b"SERVO2_TRIM", 1500.0, 9, 900, 30).pack(mav)]
+    for i in range(int(seconds * 20)):
+        t = 1000 + 50 * i
+        wob = 1e-3 * math.sin(0.7 * i)     # sensors are never bit-identical (that would be frozen)
+        msgs = []
+        if i % 20 == 0:
+            msgs.append(mav.heartbeat_encode(dialect.MAV_TYPE_FIXED_WING, dialect.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                             0, 0, dialect.MAV_STATE_ACTIVE))
+        if attitude:
+            msgs.append(mav.attitude_encode(t, ROLL, PITCH + wob, YAW, 0.0, 0.01 + wob, 0.0))
+        msgs += [
+            mav.global_position_int_encode(t, 0, 0, 500_000, 400_000, round(vn), round(ve), round(vd) + i % 2,
+                                           5730),
+            mav.raw_imu_encode(t * 1000, 10, 0, -1000, 0, 0, 0, 0, 0, 0),
+            mav.scaled_pressure_encode(t, press + wob, 9.8, 2500),
+            mav.vfr_hud_encode(U + 0.01 * i, U, 57, 60, 500.0, 0.0),
+            mav.servo_output_raw_encode(t * 1000, 0, 1500, pwm_e, pwm_t, 1500, 0, 0, 0, 0),
+        ]
+        if i % 4 == 0:
+            msgs.append(mav.gps_raw_int_encode((t - 80) * 1000, 3, 0, 0, 500_100 + i, 100, 150, 4000, 5730,
+                                               12))
+        if i % 4 == 2:   # the same fix sent again (stream faster than the GNSS): dropped
+            msgs.append(mav.gps_raw_int_encode((t - 180) * 1000, 3, 0, 0, 500_100 + i - 2, 100, 150, 4000,
+                                               5730, 12))
+        for m in msgs:
+            out.append(m.pack(mav))
+            mav.seq = (mav.seq + 1) % 256   # as mav.send would: a re-sent sample is a new packet
+    return b"".join(out)
+
+
+def run(stream: bytes, autopilot: str = "auto"):
+    config = select_autopilot(load_service_config(estimator="aerosonde-robust"), autopilot)
+    filters: list = []
+    events = Events()
+    p = Pipeline(config, observers=[events], filter_factory=fake_factory(filters))
+    for i in range(0, len(stream), 512):
+        p.feed(stream[i:i + 512], i)
+    p.close()
+    return p, [c for f in filters for c in f.calls], events
+
+
+def test_an_ardupilot_stream_gives_frames_with_every_row_finite():
+    p, calls, events = run(ardupilot_bytes())
+    assert [e.profile for e in events.of(AutopilotSelected)] == ["ardupilot"]
+    names = p.assembler.names
+    assert len(calls) >= 55
+    for _, y, mask, u in calls:
+        assert np.all(np.isfinite(y[mask])) and np.all(np.isnan(y[~mask]))
+        assert np.all(np.isfinite(u))
+    settled = calls[10:-1]
+    for j, name in enumerate(names):
+        seen = np.mean([m[j] for _, _, m, _ in settled])
+        assert seen == pytest.approx(0.25 if name == "gnss_alt" else 1.0, abs=0.05), name
+    y = np.array([c[1] for c in settled])
+    row = {n: y[:, j] for j, n in enumerate(names)}
+    # the pitch wobble (1e-3 rad) is not in the velocity: w reads it as up to 0.04 m/s, plus 1 cm/s steps
+    assert np.nanmax(np.abs(row["u"] - U)) < 0.02 and np.nanmax(np.abs(row["w"] - W)) < 0.06
+    assert row["az"] == pytest.approx(-9.80665) and row["theta"] == pytest.approx(PITCH, abs=1.1e-3)
+    assert row["baro_alt"] == pytest.approx(500.0, abs=0.1)
+    assert np.nanmax(np.abs(row["gnss_alt"] - 500.1)) < 0.1
+    assert p.rejected_counts["GPS_RAW_INT repeated sample"] > 0
+    assert np.all((row["airspeed"] >= U) & (row["airspeed"] < U + 1.0))
+    u_in = np.array([c[3] for c in settled])
+    assert u_in[:, 0] == pytest.approx(DELTA_E, abs=1.1e-3) and u_in[:, 1] == pytest.approx(DELTA_T)
+    assert "u not derivable" not in p.rejected_counts
+
+
+def test_without_attitude_u_and_w_are_missing_not_nan():
+    p, calls, _ = run(ardupilot_bytes(2.0, attitude=False), autopilot="ardupilot")
+    names = p.assembler.names
+    assert calls
+    for _, y, mask, _ in calls:
+        assert not mask[names.index("u")] and not mask[names.index("w")]
+        assert np.all(np.isfinite(y[mask]))
+    assert p.rejected_counts["u not derivable"] > 0
