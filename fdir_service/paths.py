@@ -1,8 +1,8 @@
 """Where the project's configuration lives (override with the FDIR_CONFIG_DIR variable).
 
-`config/` holds one folder per kind of file: `airframes/`, `estimators/`, `service/` and
-`experiments/` (the lab's). A name (`aerosonde`) resolves to `<kind>/<name>.toml`; a path (with
-a `.toml` suffix, or an existing file) is taken as it is.
+`config/` holds one folder per kind of file: `airframes/`, `estimators/`, `service/`,
+`autopilots/` (autopilot profiles) and `experiments/` (the lab's). A name (`aerosonde`) resolves
+to `<kind>/<name>.toml`; a path (with a `.toml` suffix, or an existing file) is taken as it is.
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ def config_dir() -> Path:
 
 
 def config_path(kind: str, name_or_path: str | os.PathLike[str]) -> Path:
-    """A config file of `kind` ("airframes", "estimators", "service", "experiments") by name or path."""
+    """A config file of `kind` ("airframes", "estimators", "service", "autopilots", "experiments") by
+    name or path."""
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.exists():
         return p
