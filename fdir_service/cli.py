@@ -8,7 +8,7 @@ import sys
 
 from fdir_service import cliutil
 
-COMMANDS = ("run", "replay", "log", "bench", "identify")
+COMMANDS = ("run", "replay", "log", "import_log", "bench", "identify")
 DESCRIPTION = (
     "Onboard fault detection, isolation and estimation for fixed-wing UAVs. Reads an autopilot's "
     "MAVLink stream, estimates sensor and actuator faults with jump-Markov particle filters, and "
