@@ -28,6 +28,13 @@ def _drop_fold(text: str) -> str:
     return re.sub(r'^on_exit = "reset_or_fold".*\n', "", text, flags=re.M)
 
 
+def _drop_altimeter_fold(text: str) -> str:
+    blocks = text.split("[[faults]]")
+    keep = [b if not re.search(r'^target = "(gnss_alt|baro_alt)"', b, flags=re.M) else _drop_fold(b)
+            for b in blocks[1:]]
+    return "[[faults]]".join([blocks[0], *keep])
+
+
 def _set_part(key: str, value: str):
     def edit(text: str) -> str:
         new, n = re.subn(rf"^{key} = .*$", f"{key} = {value}", text, flags=re.M)
@@ -38,6 +45,8 @@ def _set_part(key: str, value: str):
 VARIANTS = {
     "full": ("the robust monitor as configured", lambda t: t),
     "no-fold": ("exits never fold a sensor fault into the state (faults.on_exit = \"reset\")", _drop_fold),
+    "no-fold-alt": ("the altimeters' exits never fold (their on_exit = \"reset\"); theta and q still do",
+                    _drop_altimeter_fold),
     "no-faint": ("a faint mode-1 fault exits at pi10 like any other (parts.pi10_faint = 0)",
                  _set_part("pi10_faint", "0.0")),
     "no-window": ("gyro sentinels from the gyro row only (parts.rate_sentinel = \"row\")",

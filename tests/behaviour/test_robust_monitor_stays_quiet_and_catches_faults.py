@@ -24,6 +24,23 @@ def _fly(tmp_path: Path, base: str, extra: str, seconds: float, run_index: int =
     return sc, traj, P
 
 
+def _step_fault(fid: str, target: str, unit: str, start_s: float, duration_s: float, amplitude: float,
+                random_sign: bool = False) -> str:
+    """The [[world.faults]] TOML of one step fault (amplitude in `unit`)."""
+    return f"""
+[[world.faults]]
+id = "{fid}"
+target = "{target}"
+unit = "{unit}"
+[[world.faults.profile]]
+shape = "step"
+start_s = {start_s}
+duration_s = {duration_s}
+amplitude = {amplitude:.3f}
+random_sign = {str(random_sign).lower()}
+"""
+
+
 def _first_declaration(P: np.ndarray) -> np.ndarray:
     """Frame of each fault's first declaration (P >= 0.9 for HOLD_FRAMES + 1 frames), -1 if none."""
     high = P >= P_DECLARE
@@ -54,17 +71,7 @@ north_mps = -3.0
 
 def test_a_three_sigma_pitch_bias_in_moderate_turbulence_is_declared_within_a_second(tmp_path):
     sigma_deg = 0.57                                      # the world's attitude noise (0.01 rad)
-    fault = f"""
-[[world.faults]]
-id = "theta"
-target = "theta"
-unit = "deg"
-[[world.faults.profile]]
-shape = "step"
-start_s = 20.0
-duration_s = 15.0
-amplitude = {3.0 * sigma_deg:.3f}
-"""
+    fault = _step_fault("theta", "theta", "deg", 20.0, 15.0, 3.0 * sigma_deg)
     sc, traj, P = _fly(tmp_path, "real-turbulence-faultfree", fault, 30.0)
     j = [f.id for f in sc.estimator.faults].index("theta")
     first = _first_declaration(P)
@@ -79,18 +86,7 @@ def test_after_a_gyro_fault_ends_nothing_stays_declared(tmp_path):
     predicts; the altimeters take part of the blame while it lasts. Once it has ended (and a few
     seconds for the hysteresis to clear) no fault stands: the altimeters' exits can fold their
     fault into the altitude (faults.on_exit = "reset_or_fold"), so a blamed altimeter clears."""
-    fault = """
-[[world.faults]]
-id = "q"
-target = "q"
-unit = "deg/s"
-[[world.faults.profile]]
-shape = "step"
-start_s = 20.0
-duration_s = 12.0
-amplitude = 4.0
-random_sign = true
-"""
+    fault = _step_fault("q", "q", "deg/s", 20.0, 12.0, 4.0, random_sign=True)
     for run_index in (0, 1, 2):
         sc, traj, P = _fly(tmp_path, "real-calm-faultfree", fault, 70.0, run_index)
         j = [f.id for f in sc.estimator.faults].index("q")
