@@ -11,7 +11,7 @@ service file's. Errors name the profile file and the key.
 
 Choices: "none" (the service file's own mapping), "auto" (the service file's mapping is replaced
 once the autopilot's first HEARTBEAT names an autopilot with a profile in `AUTO_PROFILES`; no
-frames before that HEARTBEAT), or a profile name or path ("ardupilot").
+frames before that HEARTBEAT), or a profile name or path ("ardupilot", "px4").
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from fdir_service.tomltable import Check, TomlTable
 
 CHOICES = ("none", "auto", "ardupilot", "px4")
 """The `--autopilot` values documented in `fdir run --help` (a profile path is accepted too)."""
-AUTO_PROFILES = ("ardupilot",)
+AUTO_PROFILES = ("ardupilot", "px4")
 """The profiles `--autopilot auto` can pick (by their `heartbeat_autopilot`)."""
 
 
@@ -46,8 +46,7 @@ def _profile_text(name: str, texts: Mapping[str, str] | None) -> tuple[str, str]
         return path.read_text(), str(path)
     except FileNotFoundError:
         raise ConfigError(f"--autopilot {name}: no profile {path}; expected one of "
-                          f"{', '.join(c for c in CHOICES if c != 'px4')} or a profile file "
-                          "(the PX4 profile is not written yet)") from None
+                          f"{', '.join(CHOICES)} or a profile file") from None
 
 
 def apply_profile(config: ServiceConfig, name: str, texts: Mapping[str, str] | None = None) -> ServiceConfig:

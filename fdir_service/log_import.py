@@ -242,7 +242,7 @@ def _autopilot_lines(r: ImportResult) -> list[str]:
 
 def _parameter_lines(r: ImportResult) -> list[str]:
     if r.param_values == 0:
-        return ["no PARAM_VALUE in the log: the profile's [parameters] (ArduPlane defaults) were used "
+        return ["no PARAM_VALUE in the log: the profile's [parameters] (its defaults) were used "
                 "for the servo channels"]
     changed = ", ".join(f"{k}={v:g}" for k, v in sorted(r.parameters_set.items())) or "none differ"
     return [f"{r.param_values} PARAM_VALUE from the autopilot; profile [parameters] they changed: {changed}"]

@@ -302,10 +302,12 @@ def _derivation(t: TomlTable, msg_name: str) -> dict[str, Any]:
 
     name = t.take("derive", "string", choices=tuple(DERIVATIONS))
     d = DERIVATIONS[name]
-    if msg_name != d.sources[0]:
-        raise ConfigError(f"{t.key('message')}: derivation {name!r} samples {d.sources[0]}, got {msg_name!r}")
-    sources = t.take("sources", "strings", check=Check(lambda v: tuple(v) == d.sources,
-                                                       f"{list(d.sources)} (what {name} reads)"))
+    expected = d.sources_for(msg_name)
+    if expected is None:
+        raise ConfigError(f"{t.key('message')}: derivation {name!r} samples "
+                          f"{' or '.join((d.sources[0], *d.samples))}, got {msg_name!r}")
+    sources = t.take("sources", "strings", check=Check(lambda v: tuple(v) == expected,
+                                                       f"{list(expected)} (what {name} reads)"))
     options = []
     for opt, (default, expect, test) in d.options.items():
         kind_default = {} if default is None else {"default": default}

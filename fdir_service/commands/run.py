@@ -59,10 +59,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "(default: service.estimator in the config, else aerosonde)")
     p.add_argument("--autopilot", metavar="NAME", default="none",
                    help="the autopilot's message profile: ardupilot (config/autopilots/ardupilot.toml), "
-                        "auto (ardupilot if the autopilot's HEARTBEAT says MAV_AUTOPILOT_ARDUPILOTMEGA, "
-                        "else none; nothing is monitored before that HEARTBEAT), none (the config's own "
-                        "[measurements] and [inputs], the default), px4 (not written yet), or a profile "
-                        "file. See docs/autopilots.md")
+                        "px4 (config/autopilots/px4.toml), auto (ardupilot or px4 by the autopilot's "
+                        "HEARTBEAT: MAV_AUTOPILOT_ARDUPILOTMEGA or MAV_AUTOPILOT_PX4, else none; nothing "
+                        "is monitored before that HEARTBEAT), none (the config's own [measurements] and "
+                        "[inputs], the default), or a profile file. See docs/autopilots.md")
     p.add_argument("--master", metavar="URL", default=None,
                    help="the autopilot link to listen on (default: link.master in the config)")
     p.add_argument("--gcs", metavar="URL", action="append", default=None,

@@ -9,8 +9,9 @@ value in a frame) and `sources`, every message type the derivation reads (checke
 Derivations:
 
 - `body_velocity_u`, `body_velocity_v`, `body_velocity_w`: the body-axis velocity (x forward, y
-  right, z down; same unit as the sample, e.g. cm/s) of a NED velocity sample (`vx`, `vy`, `vz`
-  of GLOBAL_POSITION_INT: north, east, down) rotated into the body axes with the attitude
+  right, z down; same unit as the sample: cm/s for GLOBAL_POSITION_INT, m/s for
+  LOCAL_POSITION_NED) of a NED velocity sample (`vx`, `vy`, `vz`: north, east, down; either
+  message may be the sample, `Derivation.samples`) rotated into the body axes with the attitude
   (`roll`, `pitch`, `yaw` rad of ATTITUDE, Z-Y-X Euler angles) of the latest attitude message
   stamped at or before the sample, and at most `max_attitude_age_s` older.
 - `servo_angle`: an angle-type servo output (elevator, ArduPilot SERVOn_FUNCTION 19) as a fraction
@@ -18,17 +19,25 @@ Derivations:
   `max_deflection_deg` (in rad) and `sign` (+1: the autopilot's positive output is the
   estimator's positive deflection).
 - `servo_range`: a range-type servo output (throttle, function 70) in [0, 1] from MIN .. MAX.
+- `px4_servo_angle`, `px4_servo_range`: the same maths with PX4's (1.14+, control allocation)
+  parameter names (`PX4_MAIN`): the channel n with PWM_MAIN_FUNCn = the function, PWM_MAIN_MINn /
+  MAXn, the centre PWM_MAIN_CENTn (missing or < 0: (MIN + MAX) / 2) as the trim, reversed when bit
+  n-1 of the PWM_MAIN_REV bitmask is set. The elevator's function is found from its control
+  surface: `surface_type` (CA_SV_CSi_TYPE, 3 = elevator) -> the lowest i with that type -> servo
+  function 201 + i; the throttle's `function` is given (101 = motor 1).
 
 Servo channels are found by their function parameter (`SERVOn_FUNCTION` = `function`, the lowest
-such n); the parameter values are the profile's `[parameters]`, replaced by PARAM_VALUE messages
-from the autopilot as they arrive (`SourceCache.observe`). A value that cannot be derived (no
-attitude yet, an attitude too old, no channel with that function, a NaN) is NaN: the caller drops
-the row for that frame, it never reaches the filter.
+such n; `ServoScheme` names the parameters); the parameter values are the profile's
+`[parameters]`, replaced by PARAM_VALUE messages from the autopilot as they arrive
+(`SourceCache.observe`; an integer parameter sent bytewise, as PX4 does, is decoded). A value
+that cannot be derived (no attitude yet, an attitude too old, no channel with that function, a
+NaN) is NaN: the caller drops the row for that frame, it never reaches the filter.
 """
 
 from __future__ import annotations
 
 import math
+import struct
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -82,6 +91,52 @@ def pwm_to_range_fraction(pwm: np.ndarray, pwm_min: float, pwm_max: float,
     return 1.0 - frac if reversed_ else frac
 
 
+# ----------------------------------------------------------------------------- the parameters
+
+@dataclass(frozen=True)
+class ServoScheme:
+    """An autopilot's servo-output parameter names; `{n}` is the output channel (1-based).
+    `trim` None: the centre is (MIN + MAX) / 2 unless `centre` names a parameter >= 0.
+    `reversed_` with `reversed_bitmask`: one parameter whose bit n-1 reverses channel n."""
+
+    function: str
+    minimum: str
+    maximum: str
+    trim: str | None
+    centre: str | None
+    reversed_: str
+    reversed_bitmask: bool
+
+
+ARDUPILOT_SERVOS = ServoScheme("SERVO{n}_FUNCTION", "SERVO{n}_MIN", "SERVO{n}_MAX", "SERVO{n}_TRIM",
+                               None, "SERVO{n}_REVERSED", False)
+"""ArduPilot: SERVOn_FUNCTION / MIN / TRIM / MAX / REVERSED."""
+PX4_MAIN = ServoScheme("PWM_MAIN_FUNC{n}", "PWM_MAIN_MIN{n}", "PWM_MAIN_MAX{n}", None,
+                       "PWM_MAIN_CENT{n}", "PWM_MAIN_REV", True)
+"""PX4 1.14+ (control allocation), the PWM MAIN outputs: PWM_MAIN_FUNCn / MINn / MAXn / CENTn, REV bitmask."""
+PX4_SURFACE_TYPE = "CA_SV_CS{i}_TYPE"
+"""PX4: control surface i's role (3 = elevator); it drives servo output function 201 + i."""
+PX4_SERVO_FUNCTION_0 = 201
+PX4_SURFACES = 8
+
+_INT_TYPES = {1: ("<B", 0xFF), 2: ("<b", 0xFF), 3: ("<H", 0xFFFF), 4: ("<h", 0xFFFF),
+              5: ("<I", None), 6: ("<i", None)}
+"""MAV_PARAM_TYPE UINT8 .. INT32: (struct format, mask of the low bytes or None for 32 bits)."""
+
+
+def param_number(value: float, param_type: int) -> float:
+    """A PARAM_VALUE's value: as sent (a float, or an integer cast to float as ArduPilot does) or,
+    for an integer type whose float is not an integer (PX4's bytewise encoding: the float's four
+    bytes are the integer's; small integers read as denormals, -1 as NaN), the integer in its bytes."""
+    spec = _INT_TYPES.get(int(param_type))
+    if spec is None or (math.isfinite(value) and value == int(value)):
+        return value
+    bits = struct.unpack("<I", struct.pack("<f", value))[0]
+    fmt, mask = spec
+    raw = bits if mask is None else bits & mask
+    return float(struct.unpack(fmt, struct.pack("<I" if mask is None else fmt.upper(), raw))[0])
+
+
 # ----------------------------------------------------------------------------- the sources
 
 class SourceCache:
@@ -108,7 +163,7 @@ class SourceCache:
         if isinstance(name, bytes):
             name = name.decode("ascii", "replace")
         name = str(name).rstrip("\x00")
-        value = float(msg.param_value)
+        value = param_number(float(msg.param_value), int(getattr(msg, "param_type", 9)))
         if math.isfinite(value):
             self.params[name] = value
 
@@ -120,12 +175,34 @@ class SourceCache:
                 return (roll, pitch, yaw) if t_us - ts <= max_age_us else None
         return None
 
-    def servo_channel(self, function: int) -> int | None:
-        """The lowest n with SERVOn_FUNCTION == function, or None."""
+    def servo_channel(self, function: int, scheme: ServoScheme = ARDUPILOT_SERVOS) -> int | None:
+        """The lowest n whose function parameter (SERVOn_FUNCTION, PWM_MAIN_FUNCn) == function, or None."""
         for n in range(1, SERVO_CHANNELS + 1):
-            if self.params.get(f"SERVO{n}_FUNCTION") == function:
+            if self.params.get(scheme.function.format(n=n)) == function:
                 return n
         return None
+
+    def surface_function(self, surface_type: int) -> int | None:
+        """PX4: the servo output function (201 + i) of the lowest control surface i with
+        CA_SV_CSi_TYPE == surface_type, or None."""
+        for i in range(PX4_SURFACES):
+            if self.params.get(PX4_SURFACE_TYPE.format(i=i)) == surface_type:
+                return PX4_SERVO_FUNCTION_0 + i
+        return None
+
+    def servo_limits(self, n: int, scheme: ServoScheme) -> tuple[float, float, float, bool]:
+        """Channel n's (MIN, TRIM, MAX) PWM (us, NaN where unknown) and whether it is reversed."""
+        p = self.params
+        lo = p.get(scheme.minimum.format(n=n), math.nan)
+        hi = p.get(scheme.maximum.format(n=n), math.nan)
+        if scheme.trim is not None:
+            trim = p.get(scheme.trim.format(n=n), math.nan)
+        else:
+            cent = p.get(scheme.centre.format(n=n), -1.0) if scheme.centre else -1.0
+            trim = cent if cent >= 0 else 0.5 * (lo + hi)
+        rev = p.get(scheme.reversed_.format(n=n), 0.0)
+        reversed_ = bool(int(rev) >> (n - 1) & 1) if scheme.reversed_bitmask else bool(rev)
+        return lo, trim, hi, reversed_
 
     def forget_time(self) -> None:
         """The frame clock restarted: attitudes of the old time base no longer apply."""
@@ -148,62 +225,95 @@ def _body_velocity(axis: int) -> DeriveFn:
     return derive
 
 
-def _servo_pwm(msg, cache: SourceCache, function: int) -> tuple[float, int] | None:
+def _servo_pwm(msg, cache: SourceCache, function: int | None,
+               scheme: ServoScheme) -> tuple[float, int] | None:
     """(PWM us, channel n) of the channel with that function; None if none or not sent."""
-    n = cache.servo_channel(function)
+    n = None if function is None else cache.servo_channel(function, scheme)
     raw = None if n is None else getattr(msg, f"servo{n}_raw", None)
     if raw is None or raw == 0:   # 0: the channel is not output
         return None
     return float(raw), n
 
 
-def _servo_angle(msg, t_us: int, cache: SourceCache, opt: Options) -> float:
-    found = _servo_pwm(msg, cache, int(opt["function"]))
+def _angle(msg, cache: SourceCache, function: int | None, scheme: ServoScheme, opt: Options) -> float:
+    """The angle-type output (rad) of the channel with that function."""
+    found = _servo_pwm(msg, cache, function, scheme)
     if found is None:
         return math.nan
     pwm, n = found
-    p = cache.params
-    frac = pwm_to_angle_fraction(pwm, p.get(f"SERVO{n}_MIN", math.nan), p.get(f"SERVO{n}_TRIM", math.nan),
-                                 p.get(f"SERVO{n}_MAX", math.nan), bool(p.get(f"SERVO{n}_REVERSED", 0.0)))
+    lo, trim, hi, rev = cache.servo_limits(n, scheme)
+    frac = pwm_to_angle_fraction(pwm, lo, trim, hi, rev)
     return float(frac) * math.radians(opt["max_deflection_deg"]) * opt["sign"]
 
 
-def _servo_range(msg, t_us: int, cache: SourceCache, opt: Options) -> float:
-    found = _servo_pwm(msg, cache, int(opt["function"]))
+def _range(msg, cache: SourceCache, function: int | None, scheme: ServoScheme) -> float:
+    """The range-type output (0..1) of the channel with that function."""
+    found = _servo_pwm(msg, cache, function, scheme)
     if found is None:
         return math.nan
     pwm, n = found
-    p = cache.params
-    lo, hi = p.get(f"SERVO{n}_MIN", math.nan), p.get(f"SERVO{n}_MAX", math.nan)
-    return float(pwm_to_range_fraction(pwm, lo, hi, bool(p.get(f"SERVO{n}_REVERSED", 0.0))))
+    lo, _, hi, rev = cache.servo_limits(n, scheme)
+    return float(pwm_to_range_fraction(pwm, lo, hi, rev))
+
+
+def _servo_angle(msg, t_us: int, cache: SourceCache, opt: Options) -> float:
+    return _angle(msg, cache, int(opt["function"]), ARDUPILOT_SERVOS, opt)
+
+
+def _servo_range(msg, t_us: int, cache: SourceCache, opt: Options) -> float:
+    return _range(msg, cache, int(opt["function"]), ARDUPILOT_SERVOS)
+
+
+def _px4_servo_angle(msg, t_us: int, cache: SourceCache, opt: Options) -> float:
+    return _angle(msg, cache, cache.surface_function(int(opt["surface_type"])), PX4_MAIN, opt)
+
+
+def _px4_servo_range(msg, t_us: int, cache: SourceCache, opt: Options) -> float:
+    return _range(msg, cache, int(opt["function"]), PX4_MAIN)
 
 
 @dataclass(frozen=True)
 class Derivation:
     """A derivation: `sources` (sample message first, then what it reads besides), its options
-    (name -> (default or None = required, what a valid value is, test)) and the function."""
+    (name -> (default or None = required, what a valid value is, test)), the function, and the
+    other messages that may be the sample instead of sources[0] (`samples`, same fields)."""
 
     name: str
     sources: tuple[str, ...]
     options: dict[str, tuple[float | None, str, Callable[[float], bool]]]
     fn: DeriveFn
+    samples: tuple[str, ...] = ()
+
+    def sources_for(self, sample: str) -> tuple[str, ...] | None:
+        """The `sources` a row sampling `sample` must declare; None if it cannot be the sample."""
+        if sample != self.sources[0] and sample not in self.samples:
+            return None
+        return (sample, *self.sources[1:])
 
 
 _AGE = {"max_attitude_age_s": (0.2, "a positive time (s)", lambda v: v > 0)}
 _FUNCTION = ("a servo function number 1..255 (ArduPilot SERVOn_FUNCTION: 19 elevator, 70 throttle)",
              lambda v: v == int(v) and 1 <= v <= 255)
+_PX4_FUNCTION = ("a PX4 output function number 1..9999 (PWM_MAIN_FUNCn: 101 motor 1, 201 servo 1)",
+                 lambda v: v == int(v) and 1 <= v <= 9999)
+_SURFACE = ("a PX4 control surface type 1..18 (CA_SV_CSi_TYPE: 3 elevator)",
+            lambda v: v == int(v) and 1 <= v <= 18)
+_DEFLECTION = {
+    "max_deflection_deg": (None, "a positive angle (deg) below 90", lambda v: 0 < v < 90),
+    "sign": (1.0, "+1 or -1", lambda v: v in (1.0, -1.0)),
+}
+_NED = ("GLOBAL_POSITION_INT", "ATTITUDE")
+_SERVO = ("SERVO_OUTPUT_RAW", "PARAM_VALUE")
 DERIVATIONS: dict[str, Derivation] = {
     d.name: d for d in (
-        Derivation("body_velocity_u", ("GLOBAL_POSITION_INT", "ATTITUDE"), _AGE, _body_velocity(0)),
-        Derivation("body_velocity_v", ("GLOBAL_POSITION_INT", "ATTITUDE"), _AGE, _body_velocity(1)),
-        Derivation("body_velocity_w", ("GLOBAL_POSITION_INT", "ATTITUDE"), _AGE, _body_velocity(2)),
-        Derivation("servo_angle", ("SERVO_OUTPUT_RAW", "PARAM_VALUE"), {
-            "function": (None, *_FUNCTION),
-            "max_deflection_deg": (None, "a positive angle (deg) below 90", lambda v: 0 < v < 90),
-            "sign": (1.0, "+1 or -1", lambda v: v in (1.0, -1.0)),
-        }, _servo_angle),
-        Derivation("servo_range", ("SERVO_OUTPUT_RAW", "PARAM_VALUE"), {"function": (None, *_FUNCTION)},
-                   _servo_range),
+        Derivation("body_velocity_u", _NED, _AGE, _body_velocity(0), ("LOCAL_POSITION_NED",)),
+        Derivation("body_velocity_v", _NED, _AGE, _body_velocity(1), ("LOCAL_POSITION_NED",)),
+        Derivation("body_velocity_w", _NED, _AGE, _body_velocity(2), ("LOCAL_POSITION_NED",)),
+        Derivation("servo_angle", _SERVO, {"function": (None, *_FUNCTION), **_DEFLECTION}, _servo_angle),
+        Derivation("servo_range", _SERVO, {"function": (None, *_FUNCTION)}, _servo_range),
+        Derivation("px4_servo_angle", _SERVO, {"surface_type": (None, *_SURFACE), **_DEFLECTION},
+                   _px4_servo_angle),
+        Derivation("px4_servo_range", _SERVO, {"function": (None, *_PX4_FUNCTION)}, _px4_servo_range),
     )
 }
 """Every derivation a profile may name."""

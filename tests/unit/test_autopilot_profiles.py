@@ -169,11 +169,11 @@ def test_fdir_run_exits_2_on_a_bad_or_missing_profile(tmp_path, capsys):
     bad.write_text(ARDUPILOT.replace("function = 70", "function = 70.5"))
     assert main(["run", "--autopilot", str(bad), "--no-record", "--duration", "0"]) == 2
     assert "inputs.delta_t.function" in capsys.readouterr().err
-    assert main(["run", "--autopilot", "px4", "--no-record", "--duration", "0"]) == 2
-    assert "px4" in capsys.readouterr().err
+    assert main(["run", "--autopilot", "px5", "--no-record", "--duration", "0"]) == 2
+    assert "px5" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("choice", ["ardupilot", "auto"])
+@pytest.mark.parametrize("choice", ["ardupilot", "px4", "auto"])
 def test_the_recorded_setup_rebuilds_the_profile(choice):
     from fdir_service.pipeline import Pipeline
     from fdir_service.replay import build_pipeline
