@@ -6,6 +6,13 @@ endpoint (one datagram per read). When no frame has produced a HEARTBEAT for a h
 of wall time (autopilot silent, or just started) it sends one itself, so a ground station sees
 the service alive. SIGINT/SIGTERM stop the loop; the pipeline and recorder are closed cleanly.
 
+Stream requests (`[streams] request`, `StreamLink`): after the followed autopilot's first
+HEARTBEAT the mapped messages are requested at their wanted rates (`runtime.streams`), one
+MAV_CMD_SET_MESSAGE_INTERVAL at a time, sent on the autopilot link only; COMMAND_ACK timeouts and
+retries run on the wall clock here, never in the pipeline. Each outcome is logged and told to the
+pipeline (quoted when a message never arrives); if no frame was ever stepped once the requests are
+settled and `streams.window_s` of wall time has passed, the pipeline reports the missing messages.
+
 Link supervision: no input bytes for `health.link_timeout_s` of wall time after input had
 started = link lost (STATUSTEXT, HEARTBEAT CRITICAL); the first bytes after it = restored.
 Binding: a `udpin:HOST:PORT` link binds exactly HOST:PORT; a `udpout:` link's socket is
@@ -24,7 +31,9 @@ import threading
 import time
 from collections.abc import Callable
 
+from fdir_service.mavlink import dialect
 from fdir_service.pipeline import Pipeline
+from fdir_service.runtime.streams import StreamRequester, wanted_rates
 
 DRAIN_BACKLOG = 64
 """Datagrams fed without stepping a frame after which the recorder's queue is drained anyway."""
@@ -81,6 +90,74 @@ class _Progress:
         return False
 
 
+class StreamLink:
+    """The daemon's stream requests (see the module doc): reads the pipeline's `link_messages`,
+    runs a `StreamRequester` on the time passed in (monotonic s) and writes the requests with
+    `write(bytes)` (the autopilot link). `log` gets each outcome's line."""
+
+    def __init__(self, pipeline: Pipeline, write: Callable[[bytes], None],
+                 log: Callable[[str], None] = lambda s: None,
+                 notify: Callable[[bytes], None] | None = None) -> None:
+        self.pipeline = pipeline
+        self.write = write
+        self.notify = notify or write   # STATUSTEXTs: the autopilot link and the ground stations
+        self.log = log
+        self.config = pipeline.config.streams
+        self.requester: StreamRequester | None = None
+        self.heard = False
+        self.silence_due: float | None = None   # when to check for "no frame at all" (s)
+
+    def on_input(self, now: float) -> None:
+        """After a feed: the autopilot's HEARTBEAT starts the requests, its COMMAND_ACKs answer them."""
+        msgs = self.pipeline.link_messages
+        out: list = []
+        while msgs:
+            m = msgs.popleft()
+            if m.get_type() == "HEARTBEAT":
+                out += self._start(m, now)
+            elif self.requester is not None and self._for_us(m):
+                out += self.requester.on_ack(m, now)
+        self._send(out)
+
+    def poll(self, now: float) -> None:
+        """Now and then: resend or give up unanswered requests; report streams if no frame ever came."""
+        if self.requester is not None:
+            self._send(self.requester.poll(now))
+        done = self.requester is None or self.requester.done
+        if self.silence_due is not None and done and now >= self.silence_due:
+            self.silence_due = None
+            if self.pipeline.frames == 0:
+                self.notify(b"".join(self.pipeline.report_never_received(time.time_ns())))
+
+    def _start(self, hb, now: float) -> list:
+        """The first autopilot HEARTBEAT: build the requester for the mapping now in force."""
+        if self.heard or hb.autopilot == dialect.MAV_AUTOPILOT_INVALID:
+            return []
+        self.heard = True
+        self.silence_due = now + self.config.window_s
+        if not self.config.request:
+            return []
+        self.requester = StreamRequester(self.config, wanted_rates(self.pipeline.assembler.config))
+        return self.requester.start(hb.get_srcSystem(), hb.get_srcComponent(), int(hb.autopilot), now)
+
+    def _for_us(self, ack) -> bool:
+        """Whether a COMMAND_ACK is addressed to us (or to nobody in particular)."""
+        mav = self.pipeline.mav_out
+        ts, tc = int(getattr(ack, "target_system", 0)), int(getattr(ack, "target_component", 0))
+        return ts in (0, mav.srcSystem) and tc in (0, mav.srcComponent)
+
+    def _send(self, msgs: list) -> None:
+        """Write the requests, then hand the settled outcomes to the pipeline (and the log)."""
+        t_ns = time.time_ns()
+        if msgs:
+            self.write(self.pipeline.encode_link(msgs, t_ns))
+        if self.requester is not None and self.requester.outcomes:
+            for o in self.requester.outcomes:
+                self.pipeline.stream_outcome(o, t_ns)
+                self.log(f"fdir: stream request {o.message} every {o.interval_us} us: {o.outcome}")
+            self.requester.outcomes.clear()
+
+
 class Daemon:
     """Runs a `Pipeline` between an autopilot link and ground-station links until stopped."""
 
@@ -100,6 +177,7 @@ class Daemon:
         self.link_lost_events = 0
         self._trusted_peers: set = set()
         self._undrained = 0
+        self.streams = StreamLink(pipeline, self._send_master, self.log, self._send)
 
     def stop(self, *_args) -> None:
         self.stop_event.set()
@@ -111,6 +189,16 @@ class Daemon:
                 self.bytes_out += len(data)
             except OSError:
                 self.send_errors += 1
+
+    def _send_master(self, data: bytes) -> None:
+        """Bytes for the autopilot only (stream requests)."""
+        if not data:
+            return
+        try:
+            self.master.write(data)
+            self.bytes_out += len(data)
+        except OSError:
+            self.send_errors += 1
 
     def run(self, *, install_signals: bool = True, max_seconds: float | None = None) -> int:
         """Serve until SIGINT/SIGTERM (or `stop()`, or max_seconds of wall time); returns 0."""
@@ -165,6 +253,7 @@ class Daemon:
         if not self.bytes_in:
             watch.seen(self.pipeline.frames, now)
             return
+        self.streams.poll(now)
         silent = now - self.last_input
         if not self.pipeline.link_lost and silent >= self.pipeline.config.health.link_timeout_s:
             self.link_lost_events += 1
@@ -217,6 +306,8 @@ class Daemon:
             accepted, frames = self.pipeline.accepted_messages, self.pipeline.frames
             out = self.pipeline.feed(data, time.time_ns())
             self._vet_peer(self.pipeline.accepted_messages > accepted)
+            if self.pipeline.link_messages:
+                self.streams.on_input(now)
             if out:
                 self._send(b"".join(out))
             self._undrained += 1

@@ -82,6 +82,9 @@ class FieldMap:
     (a message without a timestamp, e.g. VFR_HUD: the latest stamp seen on the link) or "arrival"
     (a message whose own stamp lags its arrival, e.g. ArduPilot's GPS_RAW_INT stamped with the fix
     time: the latest stamp seen, and a repeat of the previous own stamp is dropped)."""
+    rate_hz: float = 0.0
+    """The rate (Hz) the service asks the autopilot to send `message` at (MAV_CMD_SET_MESSAGE_INTERVAL)
+    and expects it at; 0 = the default (`runtime.streams.DEFAULT_RATES_HZ`, else the frame rate)."""
 
     def convert(self, raw: float) -> float:
         """Raw field value -> SI value (NaN for a non-numeric or impossible raw value)."""
@@ -148,6 +151,25 @@ class HealthConfig:
 
 
 @dataclass(frozen=True)
+class StreamConfig:
+    """Stream requests and rate checks (`[streams]`).
+
+    request: after the followed autopilot's first HEARTBEAT, ask for every mapped message at its
+    wanted rate (MAV_CMD_SET_MESSAGE_INTERVAL; on ArduPilot REQUEST_DATA_STREAM when the command is
+    refused); off when the operator sets the rates on the autopilot. ack_timeout_s: wall time to
+    wait for a COMMAND_ACK before sending again; retries: how many times to send again (then "no
+    answer"). window_s: frame time over which each message's arrival rate is measured; min_fraction:
+    a message arriving below this fraction of its wanted rate is reported slow.
+    """
+
+    request: bool = True
+    ack_timeout_s: float = 1.0
+    retries: int = 2
+    window_s: float = 5.0
+    min_fraction: float = 0.8
+
+
+@dataclass(frozen=True)
 class RecordConfig:
     """`fdir run`'s flight recorder (`[record]`): on by default, a new file per start in `directory`
     (relative paths: from the working directory), rotated past rotate_mb MB or rotate_s seconds
@@ -182,6 +204,7 @@ class ServiceConfig:
     publish: PublishConfig
     health: HealthConfig = field(default_factory=HealthConfig)
     record: RecordConfig = field(default_factory=RecordConfig)
+    streams: StreamConfig = field(default_factory=StreamConfig)
     text: str = ""
     source: str = "<text>"
     autopilot: str = "none"
@@ -357,6 +380,8 @@ def _field_map(t: TomlTable, name: str, is_input: bool) -> FieldMap:
         offset=t.take("offset", "number", 0.0), transform=transform,
         where=_where(t, msg_name, cls),
         stale_s=t.take("stale_s", "number", 1.0, check=POSITIVE.saying("a positive time (s)")),
+        rate_hz=t.take("rate_hz", "number", 0.0,
+                       check=NON_NEGATIVE.saying("a rate >= 0 (Hz; 0 = the default)")),
         frozen_s=(0.0 if is_input else t.take("frozen_s", "number", 0.0,
                                                check=NON_NEGATIVE.saying("a time >= 0 (s; 0 = off)"))),
         **kw,
@@ -387,6 +412,20 @@ def parse_mappings(root: TomlTable,
         if a not in imaps:
             raise ConfigError(f"inputs.{a}: missing; the filter needs both {', '.join(ACTUATORS)}")
     return tuple(maps[m] for m in est.measurements), tuple(imaps[a] for a in ACTUATORS)
+
+
+def _streams(st: TomlTable) -> StreamConfig:
+    """`[streams]`: stream requests and rate checks."""
+    cfg = StreamConfig(
+        request=st.take("request", "boolean", True),
+        ack_timeout_s=st.take("ack_timeout_s", "number", 1.0, check=POSITIVE.saying("a positive time (s)")),
+        retries=st.take("retries", "integer", 2, check=NON_NEGATIVE.saying("a number of retries >= 0")),
+        window_s=st.take("window_s", "number", 5.0, check=POSITIVE.saying("a positive time (s)")),
+        min_fraction=st.take("min_fraction", "number", 0.8,
+                             check=Check(lambda v: 0 < v <= 1, "a fraction in (0, 1]")),
+    )
+    st.finish()
+    return cfg
 
 
 def _estimator(s: TomlTable, estimator_doc: dict[str, Any] | None) -> EstimatorConfig:
@@ -480,6 +519,8 @@ def _parse(doc: dict[str, Any], text: str, estimator_doc: dict[str, Any] | None,
     )
     hs.finish()
 
+    streams = _streams(root.sub("streams"))
+
     rc = root.sub("record")
     record = RecordConfig(
         enabled=rc.take("enabled", "boolean", True),
@@ -497,6 +538,7 @@ def _parse(doc: dict[str, Any], text: str, estimator_doc: dict[str, Any] | None,
         estimator=est, filter=filt, particles=particles, seed=seed, master=master,
         gcs=tuple(gcs), autopilot_system=ap_sys, component=comp, signing_key_file=key_file,
         signing_link_id=link_id, frame_rate_hz=rate, max_gap_s=max_gap,
-        measurements=measurements, inputs=inputs, publish=publish, health=health, record=record, text=text,
+        measurements=measurements, inputs=inputs, publish=publish, health=health, record=record,
+        streams=streams, text=text,
         source=source,
     )

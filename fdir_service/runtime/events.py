@@ -321,3 +321,72 @@ class AutopilotSelected(Event):
     @property
     def text(self) -> str:
         return f"autopilot profile {self.profile} (HEARTBEAT autopilot {self.heartbeat})"
+
+
+# ---------------------------------------------------------------------------- streams
+
+def _rows(rows: tuple[str, ...]) -> str:
+    return ",".join(rows)
+
+
+@dataclass(frozen=True)
+class StreamRequested(Event):
+    """The autopilot's answer to the request for `message` at `interval_us` (us): `outcome`
+    ("accepted", "request denied", "request unsupported", "no answer to the request", ...)."""
+
+    message: str
+    interval_us: int
+    outcome: str
+
+    @property
+    def level(self) -> str:  # type: ignore[override]
+        return "info" if self.outcome == "accepted" else "warning"
+
+    @property
+    def text(self) -> str:
+        return (f"stream request {self.message} at {1e6 / self.interval_us:g} Hz "
+                f"(interval {self.interval_us} us): {self.outcome}")
+
+
+@dataclass(frozen=True)
+class StreamMissing(Event):
+    """`message`, read by `rows`, has not arrived at all; `reason`: what became of its request."""
+
+    rows: tuple[str, ...]
+    message: str
+    reason: str
+    level: ClassVar[str] = "warning"
+
+    @property
+    def text(self) -> str:
+        return f"no {_rows(self.rows)}: {self.message} not received ({self.reason})"
+
+
+@dataclass(frozen=True)
+class StreamSlow(Event):
+    """`message`, read by `rows`, arrives at `rate_hz` (Hz, over the rate window), below the
+    wanted `wanted_hz`."""
+
+    rows: tuple[str, ...]
+    message: str
+    rate_hz: float
+    wanted_hz: float
+    level: ClassVar[str] = "warning"
+
+    @property
+    def text(self) -> str:
+        return f"{_rows(self.rows)} at {self.rate_hz:.1f} Hz, wanted {self.wanted_hz:g} Hz"
+
+
+@dataclass(frozen=True)
+class StreamRateOk(Event):
+    """`message`, reported slow, arrives at `rate_hz` (Hz) again (wanted `wanted_hz`)."""
+
+    rows: tuple[str, ...]
+    message: str
+    rate_hz: float
+    wanted_hz: float
+
+    @property
+    def text(self) -> str:
+        return f"{_rows(self.rows)} back at {self.rate_hz:.1f} Hz (wanted {self.wanted_hz:g} Hz)"

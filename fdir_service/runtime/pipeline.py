@@ -54,11 +54,13 @@ from fdir_service.runtime.events import (
     PipelineClosed,
     Reinitialised,
     Rejected,
+    StreamRequested,
 )
 from fdir_service.runtime.frames import AssembledFrame, FrameAssembler
 from fdir_service.runtime.health import INPUT_RESUMED, NON_FINITE, EstimatorHealth, filter_raised
 from fdir_service.runtime.publishing import Publisher, RateLimit, link_notice, sensor_notice
 from fdir_service.runtime.screening import MessageScreen, RejectionReport, Rejections, SourceFilter
+from fdir_service.runtime.streams import RateMonitor, RequestOutcome, rows_by_message, wanted_rates
 
 if TYPE_CHECKING:
     from fdir_service.service_config import ServiceConfig
@@ -72,6 +74,10 @@ FilterFactory = Callable[..., Filter]
 BEFORE_HEARTBEAT = Rejected("before the autopilot's HEARTBEAT (--autopilot auto)")
 LATENCY_WINDOW = 12_000
 """Step latencies kept (`Pipeline.latencies`, the last 10 min at 20 Hz)."""
+LINK_MESSAGES = frozenset({"HEARTBEAT", "COMMAND_ACK"})
+"""Messages of the followed autopilot kept in `Pipeline.link_messages` for the daemon's link layer
+(stream requests: the first HEARTBEAT starts them, COMMAND_ACKs answer them)."""
+LINK_MESSAGES_KEPT = 64
 
 
 class PipelineObserver(Protocol):
@@ -144,6 +150,9 @@ class Pipeline:
         self.monitor = EstimatorHealth(config.health, self.estimator,
                                        int(getattr(self.filter, "reinitialisations", 0)))
         self.reinit_notices = RateLimit(config.health.statustext_interval_s)
+        self.stream_notices = RateLimit(config.health.statustext_interval_s)
+        self.rates = self._rate_monitor(config)
+        self.link_messages: deque = deque(maxlen=LINK_MESSAGES_KEPT)
         # counters and state
         self.frames = 0
         self.reinitialisations = 0
@@ -172,9 +181,15 @@ class Pipeline:
         if chosen is not None:
             self.assembler = FrameAssembler(chosen, trim_input(self.estimator))
             self.source.is_mapped = self.assembler.is_mapped
+            self.rates = self._rate_monitor(chosen)
         self._emit(AutopilotSelected(chosen.autopilot if chosen is not None else "none",
                                      int(msg.autopilot)), t_ns)
         return True
+
+    def _rate_monitor(self, config: ServiceConfig) -> RateMonitor:
+        """The arrival-rate monitor of the mapping in `config` (the service file's or a profile's)."""
+        return RateMonitor(self.config.streams, wanted_rates(config), rows_by_message(config),
+                           self.config.streams.request)
 
     def _follow_system(self, system: int) -> None:
         self.mav_out.srcSystem = system
@@ -243,13 +258,16 @@ class Pipeline:
                 ob.on_raw("out", joined, t_ns)
 
     # ------------------------------------------------------------------ the contract
-    def _admit(self, msg) -> bool:
-        """Screening, then the source filter; a screened-out message is counted by its reason."""
+    def _admit(self, msg, t_ns: int) -> bool:
+        """Screening, the source filter, then (`--autopilot auto`) the wait for the autopilot's
+        HEARTBEAT; a screened-out message is counted by its reason."""
         rejected = self.screen.check(msg)
         if rejected is not None:
             self.rejected.add(rejected)
             return False
-        return self.source.accept(msg)
+        if not self.source.accept(msg):
+            return False
+        return self._auto is None or self._select_autopilot(msg, t_ns)
 
     def feed(self, data: bytes, t_ns: int) -> list[bytes]:
         """Bytes from the autopilot link (any chunking); returns encoded MAVLink frames to send."""
@@ -260,15 +278,18 @@ class Pipeline:
             ob.on_raw("in", data, t_ns)
         self._set_signing_clock(t_ns)
         out: list[bytes] = []
-        assembler = self.assembler
+        assembler, counts = self.assembler, self.rates.counts
         for msg in self.mav_in.parse_buffer(data) or []:
-            if not self._admit(msg):
+            if not self._admit(msg, t_ns):
                 continue
-            if self._auto is not None:
-                if not self._select_autopilot(msg, t_ns):
-                    continue
-                assembler = self.assembler
+            if assembler is not self.assembler:   # --autopilot auto chose a profile
+                assembler, counts = self.assembler, self.rates.counts
             self.accepted_messages += 1
+            mtype = msg.get_type()
+            if mtype in counts:
+                counts[mtype] += 1
+            elif mtype in LINK_MESSAGES:
+                self.link_messages.append(msg)
             for ob in observers:
                 ob.on_message(msg, t_ns)
             for frame in assembler.accept(msg):
@@ -311,6 +332,33 @@ class Pipeline:
             ob.on_raw("out", b"".join(out), t_ns)
         return out
 
+    def encode_link(self, msgs: Sequence, t_ns: int) -> bytes:
+        """pymavlink messages for the autopilot only (the daemon's stream requests), encoded and
+        signed like all output (receive time t_ns as the signing clock)."""
+        if not msgs:
+            return b""
+        self._set_signing_clock(t_ns)
+        b = b"".join(bytes(m.pack(self.mav_out)) for m in msgs)
+        for ob in self.observers:
+            ob.on_raw("out", b, t_ns)
+        return b
+
+    def stream_outcome(self, outcome: RequestOutcome, t_ns: int) -> None:
+        """The daemon's stream request for a message was settled: logged, and quoted when that
+        message never arrives."""
+        if outcome.message in self.rates.reasons:
+            self.rates.reasons[outcome.message] = outcome.outcome
+        self._emit(StreamRequested(outcome.message, outcome.interval_us, outcome.outcome), t_ns)
+
+    def report_never_received(self, t_ns: int) -> list[bytes]:
+        """The daemon's check when no frame was ever stepped (so no frame time to measure rates on):
+        report every wanted message never received. Returns the STATUSTEXTs to send."""
+        out: list[bytes] = []
+        self._set_signing_clock(t_ns)
+        self._report_streams(self.rates.never_received(), out, self._last_frame_us, t_ns)
+        self._send_raw(out, t_ns)
+        return out
+
     def heartbeat(self, t_ns: int) -> bytes:
         """A HEARTBEAT now (the daemon sends one when frames stop arriving)."""
         self._set_signing_clock(t_ns)
@@ -320,6 +368,15 @@ class Pipeline:
         return b
 
     # ------------------------------------------------------------------ events
+    def _report_streams(self, events: list[Event], out: list[bytes], time_us: int, t_ns: int) -> None:
+        """Log the rate monitor's events; each also goes out as STATUSTEXT "FDIR <text>" (chunked
+        when long), at most once per statustext_interval_s of frame time per message."""
+        for event in events:
+            self._emit(event, t_ns)
+            if self.stream_notices.due(f"stream:{event.message}", time_us):
+                sev = dialect.MAV_SEVERITY_WARNING if event.level == "warning" else dialect.MAV_SEVERITY_INFO
+                out += self.publisher.statustexts(sev, f"FDIR {event.text}")
+
     def _drain_assembler_events(self, out: list[bytes], t_ns: int) -> None:
         """Log the assembler's events; sensor and clock notices also go out as STATUSTEXT."""
         announce = self.config.publish.stale_statustext
@@ -432,6 +489,9 @@ class Pipeline:
         self.latencies.append(latency)   # a fixed window: constant memory and cost on a long flight
         for event in events:
             self._emit(event, t_ns)
+        stream_events = self.rates.check(frame.time_us)
+        if stream_events:
+            self._report_streams(stream_events, msgs, frame.time_us, t_ns)
         if self.observers:
             self._observe(frame, out, latency, t_ns)
         self._last_frame_us = frame.time_us

@@ -98,6 +98,7 @@ class Publisher:
         self.frame_seq = 0
         self._last_bucket: dict[str, int] = {}
         self.health = dialect.MAV_STATE_STANDBY
+        self.text_id = 0   # the last chunked STATUSTEXT's id
         self.names = {f.id: (f"f_{f.id}".encode(), f"pf_{f.id}".encode(), f"pfa_{f.id}".encode(),
                              f"pmd_{f.id}".encode()) for f in faults}
 
@@ -128,6 +129,19 @@ class Publisher:
 
     def statustext(self, severity: int, text: str) -> bytes:
         return self._pack(dialect.MAVLink_statustext_message(severity, text.encode()[:50], 0, 0))
+
+    def statustexts(self, severity: int, text: str) -> list[bytes]:
+        """`text` as one STATUSTEXT, or, longer than 50 bytes, as MAVLink 2 chunks (same non-zero
+        `id`, `chunk_seq` 0, 1, ...; a text of a multiple of 50 bytes ends with an empty chunk)."""
+        data = text.encode()
+        if len(data) <= 50:
+            return [self.statustext(severity, text)]
+        self.text_id = self.text_id % 0xFFFF + 1
+        chunks = [data[i:i + 50] for i in range(0, len(data), 50)]
+        if len(chunks[-1]) == 50:
+            chunks.append(b"")
+        return [self._pack(dialect.MAVLink_statustext_message(severity, c, self.text_id, seq))
+                for seq, c in enumerate(chunks)]
 
     def update_declarations(self, time_us: int, out: StepOutput) -> list[tuple[int, bool, str]]:
         """Advance the hysteresis; return (fault index, declared, text) for each change."""
