@@ -35,8 +35,13 @@ def body_to_ned(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def ardupilot_bytes(seconds: float = 3.0, attitude: bool = True) -> bytes:
-    """The stream of a 20 Hz ArduPlane telemetry loop starting at boot time 1 s."""
+GPS_EPOCH_US = 1_764_000_000_000_000
+"""2025-11-24 in UNIX-epoch microseconds: GPS_RAW_INT.time_usec once the GNSS has a fix."""
+
+
+def ardupilot_bytes(seconds: float = 3.0, attitude: bool = True, gps_clock_us: int = 0) -> bytes:
+    """The stream of a 20 Hz ArduPlane telemetry loop starting at boot time 1 s; GPS_RAW_INT's
+    time_usec on boot time + gps_clock_us (GPS_EPOCH_US: UNIX-epoch time, as with a fix)."""
     mav = new_mavlink(1, 1)
     vn, ve, vd = body_to_ned(ROLL, PITCH, YAW) @ np.array([U, 0.0, W]) * 100.0   # cm/s
     pwm_e = round(1500 + 400 * (-DELTA_E) / math.radians(25.0))    # ArduPilot: + = nose up
@@ -61,11 +66,11 @@ def ardupilot_bytes(seconds: float = 3.0, attitude: bool = True) -> bytes:
             mav.servo_output_raw_encode(t * 1000, 0, 1500, pwm_e, pwm_t, 1500, 0, 0, 0, 0),
         ]
         if i % 4 == 0:
-            msgs.append(mav.gps_raw_int_encode((t - 80) * 1000, 3, 0, 0, 500_100 + i, 100, 150, 4000, 5730,
-                                               12))
+            msgs.append(mav.gps_raw_int_encode(gps_clock_us + (t - 80) * 1000, 3, 0, 0, 500_100 + i, 100, 150,
+                                               4000, 5730, 12))
         if i % 4 == 2:   # the same fix sent again (stream faster than the GNSS): dropped
-            msgs.append(mav.gps_raw_int_encode((t - 180) * 1000, 3, 0, 0, 500_100 + i - 2, 100, 150, 4000,
-                                               5730, 12))
+            msgs.append(mav.gps_raw_int_encode(gps_clock_us + (t - 180) * 1000, 3, 0, 0, 500_100 + i - 2, 100,
+                                               150, 4000, 5730, 12))
         for m in msgs:
             out.append(m.pack(mav))
             mav.seq = (mav.seq + 1) % 256   # as mav.send would: a re-sent sample is a new packet
@@ -117,3 +122,17 @@ def test_without_attitude_u_and_w_are_missing_not_nan():
         assert not mask[names.index("u")] and not mask[names.index("w")]
         assert np.all(np.isfinite(y[mask]))
     assert p.rejected_counts["u not derivable"] > 0
+
+
+def test_an_epoch_time_gps_fix_lands_on_the_boot_clock():
+    """Mixed clocks: GPS_RAW_INT counts UNIX-epoch microseconds while every other message counts
+    time since boot. The GNSS row still lands in the frames (on the latest boot-clock stamp, the
+    profile's stamp = "arrival"), no time jump restarts the clock and nothing is dropped as late."""
+    p, calls, _ = run(ardupilot_bytes(gps_clock_us=GPS_EPOCH_US))
+    names = p.assembler.names
+    settled = calls[10:-1]
+    j = names.index("gnss_alt")
+    assert np.mean([m[j] for _, _, m, _ in settled]) == pytest.approx(0.25, abs=0.05)
+    t = np.array([c[0] for c in calls])
+    assert np.all(np.diff(t) > 0) and t[-1] < 10.0            # frame time stays on the boot clock
+    assert not any("late" in k or "time jump" in k for k in p.rejected_counts), p.rejected_counts
