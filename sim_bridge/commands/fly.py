@@ -15,6 +15,10 @@ Fly a scenario's simulated Aerosonde and stream it over MAVLink 2 as an autopilo
 (system 1, component 1): HEARTBEAT, GPS_RAW_INT, SCALED_PRESSURE, ATTITUDE, ODOMETRY (body-frame
 velocities), SERVO_OUTPUT_RAW and ACTUATOR_OUTPUT_STATUS, every message stamped with the
 simulation time. The truth never goes on the wire (--record writes it to an MCAP instead).
+--profile ardupilot sends ArduPlane's stock messages instead (HEARTBEAT autopilot 3, ATTITUDE,
+GLOBAL_POSITION_INT, GPS_RAW_INT, SCALED_PRESSURE, RAW_IMU, VFR_HUD, SERVO_OUTPUT_RAW PWM) and
+answers PARAM_REQUEST_READ / PARAM_REQUEST_LIST for its SERVOn_* parameters: what
+`fdir run --autopilot ardupilot|auto` reads.
 
 Per frame k: the sensor messages of frame k are sent; with --nav fdir the autopilot then waits
 for the service's FDIR_ESTIMATE of frame k and flies on its state estimate (with --nav truth it
@@ -30,6 +34,8 @@ after 3 misses in a row with --nav truth, the simulator stops waiting and free-r
 examples:
   fdir run &                                          # listens on udpin:127.0.0.1:14550
   sim-bridge fly ch4 --to udpout:127.0.0.1:14550 --speed 0 --nav fdir --record truth.mcap
+  fdir run --autopilot auto &
+  sim-bridge fly real-calm-faultfree --profile ardupilot --duration 30
 """
 
 
@@ -59,6 +65,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="drop each MAVLink packet sent with probability P (0 <= P < 1), from a stream "
                         "seeded by --seed: a deterministic lossy radio link (default 0). With --speed 0 "
                         "use a short --timeout: a frame whose messages were lost is answered late")
+    p.add_argument("--profile", choices=("native", "ardupilot"), default="native",
+                   help="the message set on the wire: the simulator's own (native, default) or "
+                        "ArduPlane's stock messages (ardupilot)")
     p.add_argument("--quiet", action="store_true", help="no summary line")
     p.set_defaults(func=run)
     return p
@@ -92,7 +101,11 @@ class _Receiver:
                 self._take(msg)
 
     def _take(self, msg) -> None:
-        """Note the service's presence; keep an FDIR_ESTIMATE's state (the last 32-64 frames)."""
+        """Note the service's presence; answer requests (the profile's replies, e.g. PARAM_VALUE);
+        keep an FDIR_ESTIMATE's state (the last 32-64 frames)."""
+        replies = self.link.answer(msg)
+        if replies:
+            self.conn.write(b"".join(replies))
         is_estimate = msg.get_type() == "FDIR_ESTIMATE"
         if msg.get_srcComponent() == 191 or is_estimate:
             self.service_seen = True
@@ -162,7 +175,8 @@ class _Flight:
         self.ap = default_autopilot(scenario, self.stepper.airframe)
         self.ap.reset()
         signing_ts = int((time.time() - 1420070400) * 1e5) if key else 0
-        self.link = AutopilotLink(scenario, key=key, signing_timestamp=signing_ts)
+        self.link = AutopilotLink(scenario, key=key, signing_timestamp=signing_ts,
+                                  profile=getattr(args, "profile", "native"))
         self.conn = open_link(args.to, source_system=1, source_component=1)
         self.rx = _Receiver(self.conn, self.link)
         self.truth = _truth_writer(args, scenario)
@@ -256,7 +270,9 @@ class _Flight:
         wall = time.monotonic() - self.t_start
         args, lossy = self.args, self.lossy
         return (f"sim-bridge: flew {self.scenario.id} {K * self.dt:g} s in {wall:.2f} s wall "
-                f"({K / max(wall, 1e-9):.0f} frames/s), nav {args.nav}, {self.misses} estimates missed, "
+                f"({K / max(wall, 1e-9):.0f} frames/s), "
+                + ("" if self.link.profile == "native" else f"profile {self.link.profile}, ")
+                + f"nav {args.nav}, {self.misses} estimates missed, "
                 f"max |altitude error| {self.max_alt_err:.2f} m"
                 + (f"; {lossy.dropped} of {lossy.sent + lossy.dropped} packets dropped" if args.loss else "")
                 + (f"; truth in {args.record}" if self.truth else ""))

@@ -1,0 +1,132 @@
+"""End to end through loopback UDP: `sim-bridge fly --profile ardupilot` (ArduPlane's stock message
+set) into `fdir run --autopilot auto` with the default robust monitor, in a fault-free real-sky
+world: the service picks the ArduPilot profile from the HEARTBEAT, the frames carry every row
+(u, w derived from GLOBAL_POSITION_INT + ATTITUDE, the elevator from SERVO_OUTPUT_RAW PWM), the
+inputs are the autopilot's commands to PWM resolution (elevator sign included), and nothing is
+declared. The simulated ArduPlane answers PARAM_REQUEST_LIST / READ with its SERVOn_* defaults."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fdir_service.autopilot_profile import select_autopilot
+from fdir_service.mavlink import dialect
+from fdir_service.pipeline import Pipeline
+from fdir_service.recording.logtools import McapLog
+from fdir_service.replay import raw_input
+from fdir_service.service_config import load_service_config
+from sim_bridge.demo import GroundStation, free_udp_port
+from sim_bridge.mavlink_bridge import AutopilotLink
+from sim_bridge.scenario import load_scenario
+from tests.helpers.service import fake_factory
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = "real-calm-faultfree"
+SECONDS = 25.0
+
+
+@pytest.fixture(scope="module")
+def flight(tmp_path_factory):
+    """(ground station, service recording, truth recording, stderr of both) of one flight."""
+    tmp = tmp_path_factory.mktemp("simap")
+    p_ap, p_gcs = free_udp_port(), free_udp_port()
+    gs = GroundStation(p_gcs)
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    log, truth = tmp / "flight.mcap", tmp / "truth.mcap"
+    service = subprocess.Popen(
+        [sys.executable, "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
+         "--autopilot", "auto", "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log)],
+        cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
+    sim = subprocess.Popen(
+        [sys.executable, "-m", "sim_bridge.cli", "fly", SCENARIO, "--profile", "ardupilot",
+         "--to", f"udpout:127.0.0.1:{p_ap}", "--speed", "20", "--nav", "truth",
+         "--duration", str(SECONDS), "--record", str(truth), "--wait", "60"],
+        cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
+    try:
+        while sim.poll() is None:
+            gs.poll(0.05)
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:
+            gs.poll(0.05)
+    finally:
+        service.send_signal(signal.SIGINT)
+        _, err_service = service.communicate(timeout=30)
+        _, err_sim = sim.communicate(timeout=30)
+        gs.close()
+    assert service.returncode == 0 and "aerosonde-robust" in err_service, err_service
+    assert sim.returncode == 0 and "profile ardupilot" in err_sim, err_sim
+    return gs, log, truth, err_service + err_sim
+
+
+def frames_of(log: Path) -> tuple[list[str], list, Pipeline]:
+    """The recorded input bytes through `--autopilot auto`'s pipeline with a recording fake filter:
+    (row names, [(t, y, mask, u)] per frame, pipeline)."""
+    config = select_autopilot(load_service_config(estimator="aerosonde-robust"), "auto")
+    filters: list = []
+    p = Pipeline(config, observers=[], filter_factory=fake_factory(filters))
+    for t_ns, data in raw_input(McapLog(log)):
+        p.feed(data, t_ns)
+    p.close()
+    return p.assembler.names, [c for f in filters for c in f.calls], p
+
+
+def test_the_service_selects_ardupilot_and_every_row_is_there(flight):
+    _, log, _, err = flight
+    logged = [r["message"] for _, r in McapLog(log).iter_json("/fdir/log")]
+    assert any("autopilot profile ardupilot (HEARTBEAT autopilot 3)" in m for m in logged), (logged, err)
+    names, calls, p = frames_of(log)
+    assert len(calls) >= 0.95 * SECONDS / 0.05, (len(calls), dict(p.rejected_counts))
+    settled = [c for c in calls if c[0] >= 1.0]
+    mask = np.array([m for _, _, m, _ in settled])
+    for _, y, m, u in settled:
+        assert np.all(np.isfinite(y[m])) and np.all(np.isfinite(u))
+    seen = dict(zip(names, mask.mean(axis=0), strict=True))
+    # GNSS at 5 Hz: a fix in every 4th 20 Hz frame; every other row in >= 90 % of the frames
+    assert all(v >= 0.9 for n, v in seen.items() if n != "gnss_alt"), seen
+    assert seen["gnss_alt"] >= 0.9 * 0.25, seen
+    assert not any("not derivable" in k for k in p.rejected_counts), dict(p.rejected_counts)
+
+
+def test_inputs_are_the_commands_to_pwm_resolution(flight):
+    """delta_e from SERVO2 PWM (ArduPilot + = nose up) equals the autopilot's command: sign and scale."""
+    _, log, truth, _ = flight
+    _, calls, _ = frames_of(log)
+    cmd = {round(r["t"], 3): (r["delta_e"], r["delta_t"]) for _, r in McapLog(truth).iter_json("/sim/truth")}
+    err = [np.subtract(u, cmd[round(t - 0.05, 3)]) for t, _, _, u in calls
+           if t >= 1.0 and round(t - 0.05, 3) in cmd]
+    assert len(err) > 400
+    err = np.abs(np.array(err)).max(axis=0)
+    assert err[0] <= 0.5 * math.radians(25.0) / 400 + 1e-6, err   # half a microsecond of elevator PWM
+    assert err[1] <= 0.5 / 800 + 1e-6, err
+
+
+def test_a_fault_free_flight_declares_nothing(flight):
+    gs, _, _, _ = flight
+    assert gs.estimates, gs.statustexts
+    declared = [txt for _, _, txt in gs.statustexts if txt.startswith("FDIR") and "fault" in txt]
+    assert declared == [], declared
+
+
+def test_the_simulated_arduplane_answers_parameter_requests():
+    link = AutopilotLink(load_scenario(SCENARIO), profile="ardupilot")
+
+    def ask(msg) -> dict[str, float]:
+        replies = link.parse(b"".join(link.answer(msg)))
+        assert all(r.get_type() == "PARAM_VALUE" and r.param_count == 12 for r in replies)
+        return {r.param_id: r.param_value for r in replies}
+
+    every = ask(dialect.MAVLink_param_request_list_message(1, 1))
+    assert every["SERVO2_FUNCTION"] == 19 and every["SERVO3_FUNCTION"] == 70 and len(every) == 12
+    assert ask(dialect.MAVLink_param_request_read_message(1, 1, b"SERVO2_TRIM", -1)) == {"SERVO2_TRIM": 1500}
+    assert ask(dialect.MAVLink_param_request_read_message(1, 1, b"", 6)) == {"SERVO2_MAX": 1900}
+    assert ask(dialect.MAVLink_param_request_read_message(1, 1, b"NO_SUCH", -1)) == {}
+    assert ask(dialect.MAVLink_param_request_read_message(7, 1, b"SERVO2_TRIM", -1)) == {}
