@@ -218,6 +218,9 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--filter", default=None, help="estimator (default: config/service.toml)")
     ap.add_argument("--particles", type=int, default=None)
     ap.add_argument("--nav", choices=("truth", "fdir"), default="fdir")
+    ap.add_argument("--profile", choices=("ardupilot", "native"), default=None,
+                    help="the simulated autopilot's message set (default: ardupilot; native in a "
+                         "world without accelerometer and pitot); fdir runs with --autopilot auto")
     ap.add_argument("--out", type=Path, default=Path(os.environ.get("FDIR_DEMO_DIR", "demo-output")),
                     help="where the MCAP logs go (default ./demo-output)")
     return ap.parse_args(argv)
@@ -229,15 +232,17 @@ def _commands(args: argparse.Namespace, p_ap: int, p_gcs: int, log_path: Path,
     accelerometer and a pitot (else the service runs the thesis's aerodynamic estimator, which
     needs neither, instead of its default robust one)."""
     fdir_cmd = [_python(), "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
-                "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log_path)]
+                "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log_path), "--autopilot", "auto"]
     if not imu:
         fdir_cmd += ["--estimator", "aerosonde"]
     if args.filter:
         fdir_cmd += ["--filter", args.filter]
     if args.particles:
         fdir_cmd += ["--particles", str(args.particles)]
+    profile = args.profile or ("ardupilot" if imu else "native")   # ArduPlane's set needs RAW_IMU, pitot
     sim_cmd = [_python(), "-m", "sim_bridge.cli", "fly", args.scenario, "--to", f"udpout:127.0.0.1:{p_ap}",
-               "--speed", str(args.speed), "--nav", args.nav, "--record", str(truth_path), "--wait", "60"]
+               "--speed", str(args.speed), "--nav", args.nav, "--record", str(truth_path), "--wait", "60",
+               "--profile", profile]
     return fdir_cmd, sim_cmd
 
 

@@ -93,6 +93,14 @@ def _heartbeat(autopilot: int, custom_mode: int = 0):
                                              dialect.MAV_STATE_ACTIVE, 3)
 
 
+def interval_ack(msg) -> list:
+    """COMMAND_ACK ACCEPTED for a MAV_CMD_SET_MESSAGE_INTERVAL (a COMMAND_LONG): the simulated
+    autopilot takes the service's stream requests (its rates are the scenario's all the same)."""
+    if msg.get_type() != "COMMAND_LONG" or msg.command != dialect.MAV_CMD_SET_MESSAGE_INTERVAL:
+        return []
+    return [dialect.MAVLink_command_ack_message(msg.command, dialect.MAV_RESULT_ACCEPTED)]
+
+
 class NativeMessages:
     """The simulator's own message set (see mavlink_bridge.py's docstring for the fields)."""
 
@@ -173,8 +181,8 @@ class NativeMessages:
                 dialect.MAVLink_actuator_output_status_message(t_us, 0b11, act)]
 
     def answer(self, msg) -> list:
-        """The native autopilot answers nothing."""
-        return []
+        """The native autopilot answers stream requests only (`interval_ack`)."""
+        return interval_ack(msg)
 
 
 # ------------------------------------------------------------------------------ ArduPlane
@@ -345,10 +353,11 @@ class ArduPlaneMessages:
 
     def answer(self, msg) -> list:
         """PARAM_VALUE(s) for a PARAM_REQUEST_LIST / PARAM_REQUEST_READ addressed to this system
-        (or broadcast); a name or index not in ARDUPLANE_SERVO_PARAMS gets no answer, as ArduPilot."""
+        (or broadcast); a name or index not in ARDUPLANE_SERVO_PARAMS gets no answer, as ArduPilot.
+        A stream request gets its COMMAND_ACK (`interval_ack`)."""
         kind = msg.get_type()
         if kind not in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ"):
-            return []
+            return interval_ack(msg)
         if msg.target_system not in (0, self.system):
             return []
         names = list(ARDUPLANE_SERVO_PARAMS)
