@@ -13,8 +13,8 @@ and, once the autopilot has computed u_k, the actuator outputs stamped t_k:
   ACTUATOR_OUTPUT_STATUS actuator[0] = delta_e (rad), actuator[1] = delta_t (0..1), float32:
                    the unquantised copy (1 us of PWM is 0.06 deg of elevator).
 HEARTBEAT (MAV_TYPE_FIXED_WING, system 1, component 1) once per second of simulation time.
-That is the "native" message set; `profile="ardupilot"` sends ArduPlane's stock set instead
-(`sim_bridge.profiles`, `sim-bridge fly --profile`).
+That is the "native" message set; `profile="ardupilot"` sends ArduPlane's stock set instead,
+`profile="px4"` PX4's Onboard-mode set (`sim_bridge.profiles`, `sim-bridge fly --profile`).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ class AutopilotLink:
     """Encodes the simulator's frames as an autopilot's MAVLink 2 stream and decodes replies.
 
     system/component: the autopilot's ids; key: optional 32-byte signing key; profile: the message
-    set on the wire (`sim_bridge.profiles`: "native", the default, or "ardupilot").
+    set on the wire (`sim_bridge.profiles`: "native", the default, "ardupilot" or "px4").
     """
 
     def __init__(self, scenario: Scenario, system: int = 1, component: int = 1,
@@ -72,11 +72,12 @@ class AutopilotLink:
 
     def actuator_messages(self, t: float, u_cmd: np.ndarray) -> list[bytes]:
         """The actuator messages for the command u_cmd (2,) [delta_e rad, delta_t 0..1] at t (s):
-        native SERVO_OUTPUT_RAW + ACTUATOR_OUTPUT_STATUS, ardupilot SERVO_OUTPUT_RAW."""
+        native SERVO_OUTPUT_RAW + ACTUATOR_OUTPUT_STATUS, ardupilot / px4 SERVO_OUTPUT_RAW."""
         return [self._pack(m) for m in self.messages.actuators(t, u_cmd)]
 
     def answer(self, msg) -> list[bytes]:
-        """The autopilot's replies to a message from the service (ardupilot: PARAM_VALUEs)."""
+        """The autopilot's replies to a message from the service (ardupilot, px4: PARAM_VALUEs;
+        every profile: COMMAND_ACK for a stream request)."""
         return [self._pack(m) for m in self.messages.answer(msg)]
 
     def parse(self, data: bytes) -> list:

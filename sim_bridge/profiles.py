@@ -10,6 +10,11 @@ pressure) and the autopilot's command into MAVLink message objects; `AutopilotLi
   --autopilot ardupilot|auto`): HEARTBEAT autopilot 3, ATTITUDE, GLOBAL_POSITION_INT (NED cm/s),
   GPS_RAW_INT (UNIX-epoch GPS time), SCALED_PRESSURE, RAW_IMU (mG), VFR_HUD (no timestamp),
   SERVO_OUTPUT_RAW (PWM through ArduPlane's default SERVOn_* parameters), PARAM_VALUE answers.
+- `px4`: PX4's Onboard-mode set (MAV_n_MODE = 2), read by config/autopilots/px4.toml (`fdir run
+  --autopilot px4|auto`): HEARTBEAT autopilot 12, ATTITUDE, LOCAL_POSITION_NED (NED m/s),
+  HIGHRES_IMU (m/s^2, hPa), GPS_RAW_INT (fix time since boot), VFR_HUD, SERVO_OUTPUT_RAW port 0
+  (PWM on the MAIN channels of the profile's example [parameters]), PARAM_VALUE answers (integers
+  bytewise, as PX4).
 
 Clocks: the simulation time t (s) is the boot time (time_boot_ms = round(t * 1000), time_usec
 since boot = round(t * 1e6)), so the service's frames and FDIR_ESTIMATEs keep the simulator's
@@ -19,18 +24,20 @@ frame times. The longitudinal simulation flies wings level, heading north (roll 
 from __future__ import annotations
 
 import math
+import struct
 from typing import Protocol
 
 import numpy as np
 
 from fdir_service.mavlink import dialect
+from fdir_service.runtime.derived import PX4_SERVO_FUNCTION_0, PX4_SURFACES
 from fdir_service.service_config import RHO_SEA_LEVEL
 from sim_bridge.scenario import Scenario
 
 Values = dict[str, float | None]
 """Row name -> the measured value this frame (SI), None when the row has no sample."""
 
-PROFILES = ("native", "ardupilot")
+PROFILES = ("native", "ardupilot", "px4")
 """The `sim-bridge fly --profile` choices."""
 
 ELEVATOR_PWM_RANGE_RAD = math.radians(30.0)
@@ -50,11 +57,13 @@ class MessageSet(Protocol):
 
 
 def make_message_set(profile: str, scenario: Scenario, system: int = 1) -> MessageSet:
-    """The message set of `profile` ("native" | "ardupilot") for a scenario; ValueError otherwise."""
+    """The message set of `profile` ("native" | "ardupilot" | "px4") for a scenario; ValueError otherwise."""
     if profile == "native":
         return NativeMessages()
     if profile == "ardupilot":
         return ArduPlaneMessages(scenario, system)
+    if profile == "px4":
+        return PX4Messages(scenario, system)
     raise ValueError(f"--profile: expected one of {', '.join(PROFILES)}, got {profile!r}")
 
 
@@ -185,9 +194,173 @@ class NativeMessages:
         return interval_ack(msg)
 
 
+# ------------------------------------------------------------------------------ stock autopilots
+
+ELEVATOR_TRAVEL_RAD = math.radians(25.0)
+"""The simulated Aerosonde's elevator deflection at the servo's MIN / MAX PWM (rad)."""
+HOME_LAT_DEG, HOME_LON_DEG = -35.363262, 149.165237
+"""Where the flight starts (ArduPilot SITL's default home, CMAC)."""
+EARTH_RADIUS_M = 6_371_000.0
+SERVO_OUTPUTS = 16
+"""SERVO_OUTPUT_RAW's channels (servo9..16_raw: the MAVLink 2 extension)."""
+
+Params = dict[str, tuple[int, int]]
+"""Parameter name -> (value, MAV_PARAM_TYPE)."""
+
+
+def angle_pwm(frac: float, lo: float, trim: float, hi: float) -> int:
+    """An angle-type servo output, a fraction of its travel (clipped to [-1, 1]), -> PWM (us) as
+    `SRV_Channel::pwm_from_angle`: trim + frac * (hi - trim) above trim, trim + frac * (trim - lo)
+    below; 1 us steps. The inverse of fdir_service's `pwm_to_angle_fraction`."""
+    frac = min(max(frac, -1.0), 1.0)
+    return int(round(trim + frac * ((hi - trim) if frac >= 0 else (trim - lo))))
+
+
+def range_pwm(x: float, lo: float, hi: float) -> int:
+    """A range-type servo output (throttle, clipped to 0..1) -> PWM (us): lo + x * (hi - lo), 1 us steps."""
+    return int(round(lo + min(max(x, 0.0), 1.0) * (hi - lo)))
+
+
+def _int16(x: float) -> int:
+    return int(max(min(round(x), 32767), -32768))
+
+
+def _param_id(msg) -> str:
+    """A PARAM_REQUEST_READ's param_id as text (NUL padding removed)."""
+    pid = msg.param_id.decode("ascii", "replace") if isinstance(msg.param_id, bytes) else msg.param_id
+    return pid.rstrip("\x00")
+
+
+class _StockAutopilot:
+    """What the simulated stock autopilots share: the navigation state from the measured rows, the
+    ATTITUDE / VFR_HUD / GPS_RAW_INT messages, SERVO_OUTPUT_RAW and the parameter protocol.
+
+    The ground velocity `ned` (m/s) is the measured body velocity (u, w rows: the truth's ground
+    velocity, wind included, plus the scenario's noise and faults, standing for the EKF's) rotated
+    to NED with the pitch sent on ATTITUDE, so the service's derivation gives the measured u, w back.
+    Position: north of the home by the integrated velocity; altitude the barometer's.
+    A subclass sets AUTOPILOT, CUSTOM_MODE, PARAMS, GPS_TIME0_US and the message makers.
+    """
+
+    AUTOPILOT = dialect.MAV_AUTOPILOT_GENERIC
+    CUSTOM_MODE = 0
+    PARAMS: Params = {}
+    GPS_TIME0_US = 0
+    """GPS_RAW_INT.time_usec (us) at simulation time 0."""
+
+    def __init__(self, scenario: Scenario, system: int = 1) -> None:
+        self.system = system
+        self.dt = scenario.dt_s
+        self.gnss_latency_s = float(scenario.sensors.gnss_latency_s or 0.0)
+        self.north_m = 0.0
+        self.home_alt_m: float | None = None
+        self.alt_m = 0.0
+        self.throttle = 0.0
+        self.ned = (0.0, 0.0, 0.0)
+
+    def heartbeat(self):
+        """HEARTBEAT: MAV_TYPE_FIXED_WING, the class's MAV_AUTOPILOT, armed, its auto custom_mode."""
+        return _heartbeat(self.AUTOPILOT, self.CUSTOM_MODE)
+
+    def sensors(self, t: float, v: Values, static_pressure_pa: float) -> list:
+        """The `_makers` messages in order, each only when one of its rows was measured."""
+        self._navigate(v)
+        return [m for m in (make(t, v, static_pressure_pa) for make in self._makers()) if m is not None]
+
+    def _makers(self) -> tuple:
+        return ()
+
+    def _navigate(self, v: Values) -> None:
+        """NED velocity (m/s) from u, w and theta; the north position and altitude (m) updated."""
+        u, w, theta = v.get("u"), v.get("w"), v.get("theta")
+        if u is not None and w is not None:
+            th = 0.0 if theta is None else theta
+            self.ned = (u * math.cos(th) + w * math.sin(th), 0.0, -u * math.sin(th) + w * math.cos(th))
+        self.north_m += self.ned[0] * self.dt
+        alt = v.get("baro_alt")
+        if alt is not None:
+            self.alt_m = float(alt)
+            if self.home_alt_m is None:
+                self.home_alt_m = self.alt_m
+
+    def _relative_alt_m(self) -> float:
+        """Altitude above the first barometer reading (m)."""
+        return self.alt_m - (self.home_alt_m or self.alt_m)
+
+    def _lat_lon_e7(self) -> tuple[int, int]:
+        lat = HOME_LAT_DEG + math.degrees(self.north_m / EARTH_RADIUS_M)
+        return int(round(lat * 1e7)), int(round(HOME_LON_DEG * 1e7))
+
+    @staticmethod
+    def _attitude(t: float, v: Values, static_pressure_pa: float):
+        """ATTITUDE: time_boot_ms; pitch rad, pitchspeed rad/s; roll = yaw = 0."""
+        return NativeMessages._attitude(t, v, static_pressure_pa)
+
+    def _vfr_hud(self, t: float, v: Values, static_pressure_pa: float):
+        """VFR_HUD: airspeed, groundspeed m/s, heading deg, throttle %, alt m, climb m/s; no time."""
+        airspeed = v.get("airspeed")
+        if airspeed is None:
+            return None
+        vn, ve, vd = self.ned
+        return dialect.MAVLink_vfr_hud_message(float(airspeed), math.hypot(vn, ve), 0,
+                                               int(round(100.0 * self.throttle)), self.alt_m, -vd)
+
+    def _gnss(self, t: float, v: Values, static_pressure_pa: float):
+        """GPS_RAW_INT on a new fix: time_usec the fix's time (the reported altitude's, gnss_latency_s
+        before t; GPS_TIME0_US at t = 0; not before 0), alt mm MSL, vel cm/s, cog 0 cdeg."""
+        gnss = v.get("gnss_alt")
+        if gnss is None:
+            return None
+        lat, lon = self._lat_lon_e7()
+        t_fix_us = max(self.GPS_TIME0_US + int(round((t - self.gnss_latency_s) * 1e6)), 0)
+        vel = int(min(round(math.hypot(self.ned[0], self.ned[1]) * 100.0), 65534))
+        return dialect.MAVLink_gps_raw_int_message(t_fix_us, dialect.GPS_FIX_TYPE_3D_FIX, lat, lon,
+                                                   int(round(gnss * 1000.0)), 100, 150, vel, 0, 12)
+
+    def actuators(self, t: float, u_cmd: np.ndarray) -> list:
+        """SERVO_OUTPUT_RAW (time_usec uint32 since boot, port 0): `_servos` PWM (us) of u_cmd (2,)
+        [delta_e rad, delta_t 0..1]."""
+        de, dt_ = float(u_cmd[0]), float(u_cmd[1])
+        self.throttle = min(max(dt_, 0.0), 1.0)
+        servo = self._servos(de, dt_)
+        return [dialect.MAVLink_servo_output_raw_message(int(round(t * 1e6)) & 0xFFFFFFFF, 0, *servo)]
+
+    def _servos(self, delta_e: float, delta_t: float) -> list[int]:
+        """The SERVO_OUTPUT_RAW channels 1..16 (PWM us, 0 = not output)."""
+        return [0] * SERVO_OUTPUTS
+
+    def answer(self, msg) -> list:
+        """PARAM_VALUE(s) for a PARAM_REQUEST_LIST / PARAM_REQUEST_READ addressed to this system
+        (or broadcast); a name or index not in PARAMS gets no answer. A stream request gets its
+        COMMAND_ACK (`interval_ack`)."""
+        kind = msg.get_type()
+        if kind not in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ"):
+            return interval_ack(msg)
+        if msg.target_system not in (0, self.system):
+            return []
+        names = list(self.PARAMS)
+        if kind == "PARAM_REQUEST_LIST":
+            return [self._param_value(i) for i in range(len(names))]
+        if msg.param_index >= 0:
+            return [self._param_value(msg.param_index)] if msg.param_index < len(names) else []
+        pid = _param_id(msg)
+        return [self._param_value(names.index(pid))] if pid in names else []
+
+    def _param_value(self, index: int):
+        name = list(self.PARAMS)[index]
+        value, ptype = self.PARAMS[name]
+        return dialect.MAVLink_param_value_message(name.encode("ascii"), self._encode(value, ptype), ptype,
+                                                   len(self.PARAMS), index)
+
+    @staticmethod
+    def _encode(value: int, param_type: int) -> float:
+        """PARAM_VALUE.param_value of a parameter: the value cast to float (ArduPilot's encoding)."""
+        return float(value)
+
+
 # ------------------------------------------------------------------------------ ArduPlane
 
-ARDUPLANE_SERVO_PARAMS: dict[str, tuple[int, int]] = {
+ARDUPLANE_SERVO_PARAMS: Params = {
     # name: (value, MAV_PARAM_TYPE): ArduPlane's defaults (SRV_Channel: FUNCTION AP_Int16, MIN / TRIM /
     # MAX AP_Int16, REVERSED AP_Int8); ArduPilot sends integers as their float value
     "SERVO1_FUNCTION": (4, dialect.MAV_PARAM_TYPE_INT16),     # aileron
@@ -205,13 +378,8 @@ ARDUPLANE_SERVO_PARAMS: dict[str, tuple[int, int]] = {
 }
 """The SERVOn_* parameters the simulated ArduPlane uses and answers PARAM_REQUEST_* with."""
 
-ELEVATOR_TRAVEL_RAD = math.radians(25.0)
-"""The simulated Aerosonde's elevator deflection at SERVO2_MIN / SERVO2_MAX (rad)."""
 GPS_EPOCH_US = 1_750_000_000_000_000
-"""GPS_RAW_INT.time_usec at simulation time 0: UNIX time (us) of 2025-06-15 15:06:40 UTC."""
-HOME_LAT_DEG, HOME_LON_DEG = -35.363262, 149.165237
-"""Where the flight starts (ArduPilot SITL's default home, CMAC)."""
-EARTH_RADIUS_M = 6_371_000.0
+"""ArduPlane's GPS_RAW_INT.time_usec at simulation time 0: UNIX time (us) of 2025-06-15 15:06:40 UTC."""
 ARDUPLANE_AUTO_MODE = 10
 """ArduPlane's custom_mode AUTO."""
 
@@ -220,92 +388,41 @@ def elevator_pwm_ardupilot(delta_e: float) -> int:
     """delta_e (rad, + = trailing edge down) -> SERVO2 PWM (us) with ArduPlane's defaults.
 
     ArduPilot's positive elevator output is nose-up (trailing edge up, = -delta_e), a fraction of
-    the travel (ELEVATOR_TRAVEL_RAD, 25 deg) mapped as `SRV_Channel::pwm_from_angle`: TRIM + frac *
-    (MAX - TRIM) above trim, TRIM + frac * (TRIM - MIN) below; clipped to MIN..MAX, 1 us steps.
+    the travel (ELEVATOR_TRAVEL_RAD, 25 deg) mapped with SERVO2_MIN / TRIM / MAX (`angle_pwm`).
     """
     p = ARDUPLANE_SERVO_PARAMS
-    lo, trim, hi = p["SERVO2_MIN"][0], p["SERVO2_TRIM"][0], p["SERVO2_MAX"][0]
-    frac = min(max(-delta_e / ELEVATOR_TRAVEL_RAD, -1.0), 1.0)
-    pwm = trim + frac * ((hi - trim) if frac >= 0 else (trim - lo))
-    return int(round(pwm))
+    return angle_pwm(-delta_e / ELEVATOR_TRAVEL_RAD, p["SERVO2_MIN"][0], p["SERVO2_TRIM"][0],
+                     p["SERVO2_MAX"][0])
 
 
 def throttle_pwm_ardupilot(delta_t: float) -> int:
     """Throttle (0..1) -> SERVO3 PWM (us): MIN + delta_t * (MAX - MIN), clipped, 1 us steps."""
     p = ARDUPLANE_SERVO_PARAMS
-    lo, hi = p["SERVO3_MIN"][0], p["SERVO3_MAX"][0]
-    return int(round(lo + min(max(delta_t, 0.0), 1.0) * (hi - lo)))
+    return range_pwm(delta_t, p["SERVO3_MIN"][0], p["SERVO3_MAX"][0])
 
 
-def _int16(x: float) -> int:
-    return int(max(min(round(x), 32767), -32768))
+class ArduPlaneMessages(_StockAutopilot):
+    """ArduPlane's stock streams for the rows the ArduPilot profile reads: ATTITUDE,
+    GLOBAL_POSITION_INT (NED cm/s; the measured u, w back to 1 cm/s), RAW_IMU, SCALED_PRESSURE,
+    VFR_HUD, GPS_RAW_INT (UNIX-epoch fix time); SERVO_OUTPUT_RAW through the SERVOn_* defaults."""
 
+    AUTOPILOT = dialect.MAV_AUTOPILOT_ARDUPILOTMEGA
+    CUSTOM_MODE = ARDUPLANE_AUTO_MODE
+    PARAMS = ARDUPLANE_SERVO_PARAMS
+    GPS_TIME0_US = GPS_EPOCH_US
 
-class ArduPlaneMessages:
-    """ArduPlane's stock streams for the rows the ArduPilot profile reads.
-
-    The ground velocity on GLOBAL_POSITION_INT is the measured body velocity (u, w rows: the
-    truth's ground velocity, wind included, plus the scenario's noise and faults, standing for the
-    EKF's) rotated to NED with the attitude sent on ATTITUDE, so the service's derivation gives the
-    measured u, w back (to 1 cm/s). Position: north of the home by the integrated velocity; altitude
-    the barometer's (ArduPilot's default EKF height source).
-    """
-
-    def __init__(self, scenario: Scenario, system: int = 1) -> None:
-        self.system = system
-        self.dt = scenario.dt_s
-        self.gnss_latency_s = float(scenario.sensors.gnss_latency_s or 0.0)
-        self.north_m = 0.0
-        self.home_alt_m: float | None = None
-        self.alt_m = 0.0
-        self.throttle = 0.0
-        self.ned = (0.0, 0.0, 0.0)
-
-    def heartbeat(self):
-        """HEARTBEAT: MAV_TYPE_FIXED_WING, MAV_AUTOPILOT_ARDUPILOTMEGA, armed, AUTO."""
-        return _heartbeat(dialect.MAV_AUTOPILOT_ARDUPILOTMEGA, ARDUPLANE_AUTO_MODE)
-
-    def sensors(self, t: float, v: Values, static_pressure_pa: float) -> list:
-        """ATTITUDE, GLOBAL_POSITION_INT, RAW_IMU, SCALED_PRESSURE, VFR_HUD, GPS_RAW_INT (on a fix);
-        each only when one of its rows was measured."""
-        self._navigate(v)
-        makers = (self._attitude, self._position, self._imu, self._baro, self._vfr_hud, self._gnss)
-        return [m for m in (make(t, v, static_pressure_pa) for make in makers) if m is not None]
-
-    def _navigate(self, v: Values) -> None:
-        """NED velocity (m/s) from u, w and theta; the north position and altitude (m) updated."""
-        u, w, theta = v.get("u"), v.get("w"), v.get("theta")
-        if u is not None and w is not None:
-            th = 0.0 if theta is None else theta
-            self.ned = (u * math.cos(th) + w * math.sin(th), 0.0, -u * math.sin(th) + w * math.cos(th))
-        self.north_m += self.ned[0] * self.dt
-        alt = v.get("baro_alt")
-        if alt is not None:
-            self.alt_m = float(alt)
-            if self.home_alt_m is None:
-                self.home_alt_m = self.alt_m
-
-    def _lat_lon_e7(self) -> tuple[int, int]:
-        lat = HOME_LAT_DEG + math.degrees(self.north_m / EARTH_RADIUS_M)
-        return int(round(lat * 1e7)), int(round(HOME_LON_DEG * 1e7))
-
-    @staticmethod
-    def _attitude(t: float, v: Values, static_pressure_pa: float):
-        theta, q = v.get("theta"), v.get("q")
-        if theta is None and q is None:
-            return None
-        return dialect.MAVLink_attitude_message(int(round(t * 1000.0)), 0.0, _nan_if_none(theta), 0.0,
-                                                0.0, _nan_if_none(q), 0.0)
+    def _makers(self) -> tuple:
+        return (self._attitude, self._position, self._imu, self._baro, self._vfr_hud, self._gnss)
 
     def _position(self, t: float, v: Values, static_pressure_pa: float):
         """GLOBAL_POSITION_INT: lat/lon degE7, alt / relative_alt mm, vx/vy/vz cm/s NED, hdg 0 cdeg."""
         if v.get("u") is None or v.get("w") is None:
             return None
         lat, lon = self._lat_lon_e7()
-        rel = self.alt_m - (self.home_alt_m or self.alt_m)
         vn, ve, vd = self.ned
         return dialect.MAVLink_global_position_int_message(
-            int(round(t * 1000.0)), lat, lon, int(round(self.alt_m * 1000.0)), int(round(rel * 1000.0)),
+            int(round(t * 1000.0)), lat, lon, int(round(self.alt_m * 1000.0)),
+            int(round(self._relative_alt_m() * 1000.0)),
             _int16(vn * 100.0), _int16(ve * 100.0), _int16(vd * 100.0), 0)
 
     @staticmethod
@@ -322,56 +439,145 @@ class ArduPlaneMessages:
         """SCALED_PRESSURE: press_abs hPa (static), press_diff hPa (pitot), 15 degC."""
         return NativeMessages._baro(t, v, static_pressure_pa)
 
-    def _vfr_hud(self, t: float, v: Values, static_pressure_pa: float):
-        """VFR_HUD: airspeed, groundspeed m/s, heading deg, throttle %, alt m, climb m/s; no time."""
-        airspeed = v.get("airspeed")
-        if airspeed is None:
+    def _servos(self, delta_e: float, delta_t: float) -> list[int]:
+        """SERVO1 aileron and SERVO4 rudder at trim, SERVO2 elevator, SERVO3 throttle (PWM us)."""
+        return [1500, elevator_pwm_ardupilot(delta_e), throttle_pwm_ardupilot(delta_t), 1500] + [0] * 12
+
+
+# ------------------------------------------------------------------------------ PX4
+
+_INT32 = dialect.MAV_PARAM_TYPE_INT32
+PX4_PARAMS: Params = {
+    # name: (value, MAV_PARAM_TYPE): config/autopilots/px4.toml's [parameters], an example standard
+    # plane (PX4 has no default layout); PX4's parameters are int32 or float, integers sent bytewise
+    "CA_SV_CS0_TYPE": (1, _INT32),        # left aileron  -> function 201
+    "CA_SV_CS1_TYPE": (2, _INT32),        # right aileron -> 202
+    "CA_SV_CS2_TYPE": (3, _INT32),        # elevator      -> 203
+    "CA_SV_CS3_TYPE": (4, _INT32),        # rudder        -> 204
+    "PWM_MAIN_FUNC1": (201, _INT32),
+    "PWM_MAIN_FUNC2": (202, _INT32),
+    "PWM_MAIN_FUNC3": (203, _INT32),      # the elevator on MAIN 3
+    "PWM_MAIN_FUNC4": (204, _INT32),
+    "PWM_MAIN_FUNC5": (101, _INT32),      # motor 1 on MAIN 5
+    "PWM_MAIN_MIN3": (1000, _INT32),
+    "PWM_MAIN_MAX3": (2000, _INT32),
+    "PWM_MAIN_MIN5": (1000, _INT32),
+    "PWM_MAIN_MAX5": (2000, _INT32),
+    "PWM_MAIN_REV": (0, _INT32),          # bit n-1 reverses MAIN n
+}
+"""The parameters the simulated PX4 uses and answers PARAM_REQUEST_* with."""
+
+PX4_ELEVATOR_SURFACE_TYPE = 3
+"""CA_SV_CSi_TYPE of an elevator; surface i drives output function 201 + i."""
+PX4_MOTOR1_FUNCTION = 101
+PX4_PWM_DEFAULTS = (1000.0, 2000.0)
+"""PWM_MAIN_MINn / MAXn when not set (us); PWM_MAIN_CENTn unset (-1): (MIN + MAX) / 2."""
+PX4_MAIN_CHANNELS = 8
+PX4_AUTO_MISSION_MODE = (4 << 16) | (4 << 24)
+"""PX4's custom_mode: main mode AUTO (4) << 16, sub mode MISSION (4) << 24."""
+
+
+def _px4(name: str, default: float | None = None) -> float | None:
+    entry = PX4_PARAMS.get(name)
+    return default if entry is None else float(entry[0])
+
+
+def px4_channel(function: int) -> int | None:
+    """The lowest MAIN channel n (1-based) with PWM_MAIN_FUNCn == function, or None."""
+    for n in range(1, PX4_MAIN_CHANNELS + 1):
+        if _px4(f"PWM_MAIN_FUNC{n}") == function:
+            return n
+    return None
+
+
+def px4_elevator_function() -> int | None:
+    """201 + the lowest control surface i with CA_SV_CSi_TYPE = 3 (elevator), or None."""
+    for i in range(PX4_SURFACES):
+        if _px4(f"CA_SV_CS{i}_TYPE") == PX4_ELEVATOR_SURFACE_TYPE:
+            return PX4_SERVO_FUNCTION_0 + i
+    return None
+
+
+def px4_limits(n: int) -> tuple[float, float, float, bool]:
+    """MAIN channel n's (MIN, centre, MAX) PWM (us) and whether bit n-1 of PWM_MAIN_REV reverses it."""
+    lo = _px4(f"PWM_MAIN_MIN{n}", PX4_PWM_DEFAULTS[0])
+    hi = _px4(f"PWM_MAIN_MAX{n}", PX4_PWM_DEFAULTS[1])
+    cent = _px4(f"PWM_MAIN_CENT{n}", -1.0)
+    centre = cent if cent >= 0 else 0.5 * (lo + hi)
+    return lo, centre, hi, bool(int(_px4("PWM_MAIN_REV", 0.0)) >> (n - 1) & 1)
+
+
+def elevator_pwm_px4(delta_e: float, n: int) -> int:
+    """delta_e (rad, + = trailing edge down) -> the elevator's MAIN n PWM (us): PX4's positive
+    elevator output is a nose-up torque (CA_SV_CSi_TRQ_P = 1: trailing edge up, = -delta_e), a
+    fraction of ELEVATOR_TRAVEL_RAD, negated on a reversed channel, mapped with MIN / centre / MAX."""
+    lo, centre, hi, rev = px4_limits(n)
+    frac = -delta_e / ELEVATOR_TRAVEL_RAD
+    return angle_pwm(-frac if rev else frac, lo, centre, hi)
+
+
+def throttle_pwm_px4(delta_t: float, n: int) -> int:
+    """Throttle (0..1) -> the motor's MAIN n PWM (us): MIN .. MAX (MAX .. MIN reversed)."""
+    lo, _, hi, rev = px4_limits(n)
+    x = min(max(delta_t, 0.0), 1.0)
+    return range_pwm(1.0 - x if rev else x, lo, hi)
+
+
+def _px4_bytewise(value: int) -> float:
+    """An int32 parameter as PX4 sends it: the float whose four bytes are the integer's."""
+    return struct.unpack("<f", struct.pack("<i", int(value)))[0]
+
+
+class PX4Messages(_StockAutopilot):
+    """PX4's Onboard-mode streams (MAV_n_MODE = 2) for the rows the PX4 profile reads: ATTITUDE,
+    LOCAL_POSITION_NED (m, m/s NED; the measured u, w back), HIGHRES_IMU (m/s^2, hPa), VFR_HUD,
+    GPS_RAW_INT (fix time since boot); SERVO_OUTPUT_RAW port 0 on the MAIN channels of PX4_PARAMS."""
+
+    AUTOPILOT = dialect.MAV_AUTOPILOT_PX4
+    CUSTOM_MODE = PX4_AUTO_MISSION_MODE
+    PARAMS = PX4_PARAMS
+
+    def _makers(self) -> tuple:
+        return (self._attitude, self._position, self._imu, self._vfr_hud, self._gnss)
+
+    def _position(self, t: float, v: Values, static_pressure_pa: float):
+        """LOCAL_POSITION_NED: time_boot_ms; x north, y east, z down of the home (m); vx, vy, vz m/s NED."""
+        if v.get("u") is None or v.get("w") is None:
             return None
         vn, ve, vd = self.ned
-        return dialect.MAVLink_vfr_hud_message(float(airspeed), math.hypot(vn, ve), 0,
-                                               int(round(100.0 * self.throttle)), self.alt_m, -vd)
-
-    def _gnss(self, t: float, v: Values, static_pressure_pa: float):
-        """GPS_RAW_INT on a new fix: time_usec the fix's UNIX-epoch time (the reported altitude's,
-        gnss_latency_s before t), alt mm MSL, vel cm/s, cog 0 cdeg."""
-        gnss = v.get("gnss_alt")
-        if gnss is None:
-            return None
-        lat, lon = self._lat_lon_e7()
-        t_fix_us = GPS_EPOCH_US + int(round((t - self.gnss_latency_s) * 1e6))
-        vel = int(min(round(math.hypot(self.ned[0], self.ned[1]) * 100.0), 65534))
-        return dialect.MAVLink_gps_raw_int_message(t_fix_us, dialect.GPS_FIX_TYPE_3D_FIX, lat, lon,
-                                                   int(round(gnss * 1000.0)), 100, 150, vel, 0, 12)
-
-    def actuators(self, t: float, u_cmd: np.ndarray) -> list:
-        """SERVO_OUTPUT_RAW (time_usec uint32 since boot, port 0): SERVO1 aileron and SERVO4 rudder
-        at trim, SERVO2 elevator and SERVO3 throttle PWM (us) from u_cmd (2,) [delta_e rad, delta_t]."""
-        de, dt_ = float(u_cmd[0]), float(u_cmd[1])
-        self.throttle = min(max(dt_, 0.0), 1.0)
-        servo = [1500, elevator_pwm_ardupilot(de), throttle_pwm_ardupilot(dt_), 1500] + [0] * 12
-        return [dialect.MAVLink_servo_output_raw_message(int(round(t * 1e6)) & 0xFFFFFFFF, 0, *servo)]
-
-    def answer(self, msg) -> list:
-        """PARAM_VALUE(s) for a PARAM_REQUEST_LIST / PARAM_REQUEST_READ addressed to this system
-        (or broadcast); a name or index not in ARDUPLANE_SERVO_PARAMS gets no answer, as ArduPilot.
-        A stream request gets its COMMAND_ACK (`interval_ack`)."""
-        kind = msg.get_type()
-        if kind not in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ"):
-            return interval_ack(msg)
-        if msg.target_system not in (0, self.system):
-            return []
-        names = list(ARDUPLANE_SERVO_PARAMS)
-        if kind == "PARAM_REQUEST_LIST":
-            return [self._param_value(i) for i in range(len(names))]
-        if msg.param_index >= 0:
-            return [self._param_value(msg.param_index)] if msg.param_index < len(names) else []
-        pid = msg.param_id.decode("ascii", "replace") if isinstance(msg.param_id, bytes) else msg.param_id
-        pid = pid.rstrip("\x00")
-        return [self._param_value(names.index(pid))] if pid in names else []
+        return dialect.MAVLink_local_position_ned_message(int(round(t * 1000.0)), self.north_m, 0.0,
+                                                          -self._relative_alt_m(), vn, ve, vd)
 
     @staticmethod
-    def _param_value(index: int):
-        name = list(ARDUPLANE_SERVO_PARAMS)[index]
-        value, ptype = ARDUPLANE_SERVO_PARAMS[name]
-        return dialect.MAVLink_param_value_message(name.encode("ascii"), float(value), ptype,
-                                                   len(ARDUPLANE_SERVO_PARAMS), index)
+    def _imu(t: float, v: Values, static_pressure_pa: float):
+        """HIGHRES_IMU: time_usec since boot; xacc / zacc m/s^2 (FRD specific force), ygyro rad/s,
+        abs_pressure / diff_pressure hPa, pressure_alt m, 15 degC; NaN and its fields_updated bit
+        clear where the row was not measured."""
+        ax, az, q, alt = v.get("ax"), v.get("az"), v.get("q"), v.get("baro_alt")
+        if ax is None and az is None and alt is None:
+            return None
+        updated = sum(bit for bit, x in ((1, ax), (4, az), (16, q)) if x is not None)
+        updated |= 0 if alt is None else 0x1E00       # abs, diff pressure, pressure_alt, temperature
+        abs_hpa = math.nan if alt is None else float(static_pressure_pa) / 100.0
+        return dialect.MAVLink_highres_imu_message(
+            int(round(t * 1e6)), _nan_if_none(ax), 0.0, _nan_if_none(az), 0.0, _nan_if_none(q), 0.0,
+            0.0, 0.0, 0.0, abs_hpa, _diff_pressure_hpa(v.get("airspeed")), _nan_if_none(alt), 15.0,
+            updated, 0)
+
+    def _servos(self, delta_e: float, delta_t: float) -> list[int]:
+        """MAIN 1..8: the elevator surface's and motor 1's channel from u, the other assigned
+        channels at their centre, unassigned ones 0 (not output)."""
+        servo = [int(round(px4_limits(n)[1])) if _px4(f"PWM_MAIN_FUNC{n}", 0.0) else 0
+                 for n in range(1, PX4_MAIN_CHANNELS + 1)]
+        elevator = px4_channel(px4_elevator_function() or 0)
+        motor = px4_channel(PX4_MOTOR1_FUNCTION)
+        if elevator is not None:
+            servo[elevator - 1] = elevator_pwm_px4(delta_e, elevator)
+        if motor is not None:
+            servo[motor - 1] = throttle_pwm_px4(delta_t, motor)
+        return servo + [0] * (SERVO_OUTPUTS - PX4_MAIN_CHANNELS)
+
+    @staticmethod
+    def _encode(value: int, param_type: int) -> float:
+        """PX4's encoding: an integer type bytewise (`_px4_bytewise`), a float as is."""
+        return float(value) if param_type == dialect.MAV_PARAM_TYPE_REAL32 else _px4_bytewise(value)

@@ -18,7 +18,10 @@ simulation time. The truth never goes on the wire (--record writes it to an MCAP
 --profile ardupilot sends ArduPlane's stock messages instead (HEARTBEAT autopilot 3, ATTITUDE,
 GLOBAL_POSITION_INT, GPS_RAW_INT, SCALED_PRESSURE, RAW_IMU, VFR_HUD, SERVO_OUTPUT_RAW PWM) and
 answers PARAM_REQUEST_READ / PARAM_REQUEST_LIST for its SERVOn_* parameters: what
-`fdir run --autopilot ardupilot|auto` reads.
+`fdir run --autopilot ardupilot|auto` reads. --profile px4 sends PX4's Onboard-mode messages
+(HEARTBEAT autopilot 12, ATTITUDE, LOCAL_POSITION_NED, HIGHRES_IMU, GPS_RAW_INT, VFR_HUD,
+SERVO_OUTPUT_RAW PWM on the MAIN outputs) and answers for its CA_SV_* / PWM_MAIN_* parameters
+(integers bytewise): what `fdir run --autopilot px4|auto` reads.
 
 Per frame k: the sensor messages of frame k are sent; with --nav fdir the autopilot then waits
 for the service's FDIR_ESTIMATE of frame k and flies on its state estimate (with --nav truth it
@@ -36,6 +39,7 @@ examples:
   sim-bridge fly ch4 --to udpout:127.0.0.1:14550 --speed 0 --nav fdir --record truth.mcap
   fdir run --autopilot auto &
   sim-bridge fly real-calm-faultfree --profile ardupilot --duration 30
+  sim-bridge fly real-calm-faultfree --profile px4 --duration 30
 """
 
 
@@ -65,9 +69,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="drop each MAVLink packet sent with probability P (0 <= P < 1), from a stream "
                         "seeded by --seed: a deterministic lossy radio link (default 0). With --speed 0 "
                         "use a short --timeout: a frame whose messages were lost is answered late")
-    p.add_argument("--profile", choices=("native", "ardupilot"), default="native",
-                   help="the message set on the wire: the simulator's own (native, default) or "
-                        "ArduPlane's stock messages (ardupilot)")
+    p.add_argument("--profile", choices=("native", "ardupilot", "px4"), default="native",
+                   help="the message set on the wire: the simulator's own (native, default), "
+                        "ArduPlane's stock messages (ardupilot) or PX4's Onboard-mode ones (px4)")
     p.add_argument("--quiet", action="store_true", help="no summary line")
     p.set_defaults(func=run)
     return p

@@ -1,18 +1,22 @@
-"""End to end through loopback UDP: `sim-bridge fly --profile ardupilot` (ArduPlane's stock message
-set) into `fdir run --autopilot auto` with the default robust monitor, in a fault-free real-sky
-world: the service picks the ArduPilot profile from the HEARTBEAT, the frames carry every row
-(u, w derived from GLOBAL_POSITION_INT + ATTITUDE, the elevator from SERVO_OUTPUT_RAW PWM), the
-inputs are the autopilot's commands to PWM resolution (elevator sign included), and nothing is
-declared. The simulated ArduPlane answers PARAM_REQUEST_LIST / READ with its SERVOn_* defaults."""
+"""End to end through loopback UDP: `sim-bridge fly --profile ardupilot|px4` (ArduPlane's stock
+message set, PX4's Onboard-mode one) into `fdir run --autopilot auto` with the default robust
+monitor, in a fault-free real-sky world: the service picks the autopilot's profile from the
+HEARTBEAT, the frames carry every row (u, w derived from GLOBAL_POSITION_INT / LOCAL_POSITION_NED
++ ATTITUDE, the elevator from SERVO_OUTPUT_RAW PWM), the inputs are the autopilot's commands to
+PWM resolution (elevator sign included), and nothing is declared. The simulated ArduPlane answers
+PARAM_REQUEST_LIST / READ with its SERVOn_* defaults, the simulated PX4 with px4.toml's
+[parameters], integers bytewise."""
 
 from __future__ import annotations
 
 import math
 import os
 import signal
+import struct
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +27,7 @@ from fdir_service.mavlink import dialect
 from fdir_service.pipeline import Pipeline
 from fdir_service.recording.logtools import McapLog
 from fdir_service.replay import raw_input
+from fdir_service.runtime.derived import param_number
 from fdir_service.service_config import load_service_config
 from sim_bridge.demo import GroundStation, free_udp_port
 from sim_bridge.mavlink_bridge import AutopilotLink
@@ -32,12 +37,19 @@ from tests.helpers.service import fake_factory
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = "real-calm-faultfree"
 SECONDS = 25.0
+PROFILES = {
+    # --profile: (what the service logs on selecting it, elevator PWM (us) over 25 deg, throttle PWM
+    # span (us)): ArduPlane's SERVOn_MIN / TRIM / MAX 1100 / 1500 / 1900, px4.toml's PWM_MAIN 1000 / 2000
+    "ardupilot": ("autopilot profile ardupilot (HEARTBEAT autopilot 3)", 400, 800),
+    "px4": ("autopilot profile px4 (HEARTBEAT autopilot 12)", 500, 1000),
+}
 
 
-@pytest.fixture(scope="module")
-def flight(tmp_path_factory):
-    """(ground station, service recording, truth recording, stderr of both) of one flight."""
-    tmp = tmp_path_factory.mktemp("simap")
+@pytest.fixture(scope="module", params=list(PROFILES))
+def flight(request, tmp_path_factory):
+    """(profile, ground station, service recording, truth recording, stderr of both) of one flight."""
+    profile = request.param
+    tmp = tmp_path_factory.mktemp(f"sim{profile}")
     p_ap, p_gcs = free_udp_port(), free_udp_port()
     gs = GroundStation(p_gcs)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -47,7 +59,7 @@ def flight(tmp_path_factory):
          "--autopilot", "auto", "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log)],
         cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
     sim = subprocess.Popen(
-        [sys.executable, "-m", "sim_bridge.cli", "fly", SCENARIO, "--profile", "ardupilot",
+        [sys.executable, "-m", "sim_bridge.cli", "fly", SCENARIO, "--profile", profile,
          "--to", f"udpout:127.0.0.1:{p_ap}", "--speed", "20", "--nav", "truth",
          "--duration", str(SECONDS), "--record", str(truth), "--wait", "60"],
         cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
@@ -63,8 +75,8 @@ def flight(tmp_path_factory):
         _, err_sim = sim.communicate(timeout=30)
         gs.close()
     assert service.returncode == 0 and "aerosonde-robust" in err_service, err_service
-    assert sim.returncode == 0 and "profile ardupilot" in err_sim, err_sim
-    return gs, log, truth, err_service + err_sim
+    assert sim.returncode == 0 and f"profile {profile}" in err_sim, err_sim
+    return profile, gs, log, truth, err_service + err_sim
 
 
 def frames_of(log: Path) -> tuple[list[str], list, Pipeline]:
@@ -79,10 +91,10 @@ def frames_of(log: Path) -> tuple[list[str], list, Pipeline]:
     return p.assembler.names, [c for f in filters for c in f.calls], p
 
 
-def test_the_service_selects_ardupilot_and_every_row_is_there(flight):
-    _, log, _, err = flight
+def test_the_service_selects_the_profile_and_every_row_is_there(flight):
+    profile, _, log, _, err = flight
     logged = [r["message"] for _, r in McapLog(log).iter_json("/fdir/log")]
-    assert any("autopilot profile ardupilot (HEARTBEAT autopilot 3)" in m for m in logged), (logged, err)
+    assert any(PROFILES[profile][0] in m for m in logged), (logged, err)
     names, calls, p = frames_of(log)
     assert len(calls) >= 0.95 * SECONDS / 0.05, (len(calls), dict(p.rejected_counts))
     settled = [c for c in calls if c[0] >= 1.0]
@@ -97,36 +109,72 @@ def test_the_service_selects_ardupilot_and_every_row_is_there(flight):
 
 
 def test_inputs_are_the_commands_to_pwm_resolution(flight):
-    """delta_e from SERVO2 PWM (ArduPilot + = nose up) equals the autopilot's command: sign and scale."""
-    _, log, truth, _ = flight
+    """delta_e from the elevator's PWM (ArduPilot, PX4: + = nose up) equals the autopilot's command:
+    sign and scale."""
+    profile, _, log, truth, _ = flight
+    _, elevator_us, throttle_us = PROFILES[profile]
     _, calls, _ = frames_of(log)
     cmd = {round(r["t"], 3): (r["delta_e"], r["delta_t"]) for _, r in McapLog(truth).iter_json("/sim/truth")}
     err = [np.subtract(u, cmd[round(t - 0.05, 3)]) for t, _, _, u in calls
            if t >= 1.0 and round(t - 0.05, 3) in cmd]
     assert len(err) > 400
     err = np.abs(np.array(err)).max(axis=0)
-    assert err[0] <= 0.5 * math.radians(25.0) / 400 + 1e-6, err   # half a microsecond of elevator PWM
-    assert err[1] <= 0.5 / 800 + 1e-6, err
+    assert err[0] <= 0.5 * math.radians(25.0) / elevator_us + 1e-6, err   # half a microsecond of PWM
+    assert err[1] <= 0.5 / throttle_us + 1e-6, err
 
 
 def test_a_fault_free_flight_declares_nothing(flight):
-    gs, _, _, _ = flight
+    _, gs, _, _, _ = flight
     assert gs.estimates, gs.statustexts
     declared = [txt for _, _, txt in gs.statustexts if txt.startswith("FDIR") and "fault" in txt]
     assert declared == [], declared
 
 
-def test_the_simulated_arduplane_answers_parameter_requests():
-    link = AutopilotLink(load_scenario(SCENARIO), profile="ardupilot")
+def _asker(profile: str, count: int):
+    """ask(request) -> {param_id: the value as the service decodes it} of the simulated autopilot's
+    PARAM_VALUE replies (each checked to announce `count` parameters); ask.raw: the replies."""
+    link = AutopilotLink(load_scenario(SCENARIO), profile=profile)
 
     def ask(msg) -> dict[str, float]:
-        replies = link.parse(b"".join(link.answer(msg)))
-        assert all(r.get_type() == "PARAM_VALUE" and r.param_count == 12 for r in replies)
-        return {r.param_id: r.param_value for r in replies}
+        ask.raw = link.parse(b"".join(link.answer(msg)))
+        assert all(r.get_type() == "PARAM_VALUE" and r.param_count == count for r in ask.raw)
+        return {r.param_id: param_number(r.param_value, r.param_type) for r in ask.raw}
+    return ask
 
+
+def _read(name: str = "", index: int = -1, system: int = 1):
+    """PARAM_REQUEST_READ of `name` (index -1) or `index`, to `system`."""
+    return dialect.MAVLink_param_request_read_message(system, 1, name.encode("ascii"), index)
+
+
+def test_the_simulated_arduplane_answers_parameter_requests():
+    ask = _asker("ardupilot", 12)
     every = ask(dialect.MAVLink_param_request_list_message(1, 1))
     assert every["SERVO2_FUNCTION"] == 19 and every["SERVO3_FUNCTION"] == 70 and len(every) == 12
-    assert ask(dialect.MAVLink_param_request_read_message(1, 1, b"SERVO2_TRIM", -1)) == {"SERVO2_TRIM": 1500}
-    assert ask(dialect.MAVLink_param_request_read_message(1, 1, b"", 6)) == {"SERVO2_MAX": 1900}
-    assert ask(dialect.MAVLink_param_request_read_message(1, 1, b"NO_SUCH", -1)) == {}
-    assert ask(dialect.MAVLink_param_request_read_message(7, 1, b"SERVO2_TRIM", -1)) == {}
+    assert all(r.param_value == every[r.param_id] for r in ask.raw)       # integers cast to float
+    assert ask(_read("SERVO2_TRIM")) == {"SERVO2_TRIM": 1500}
+    assert ask(_read(index=6)) == {"SERVO2_MAX": 1900}
+    assert ask(_read("NO_SUCH")) == {}
+    assert ask(_read("SERVO2_TRIM", system=7)) == {}
+
+
+def test_the_simulated_px4_answers_with_the_profiles_parameters_bytewise():
+    profile = tomllib.loads((ROOT / "config/autopilots/px4.toml").read_text())["parameters"]
+    ask = _asker("px4", len(profile))
+    assert ask(dialect.MAVLink_param_request_list_message(1, 1)) == profile
+    func3 = next(r for r in ask.raw if r.param_id == "PWM_MAIN_FUNC3")
+    assert func3.param_type == dialect.MAV_PARAM_TYPE_INT32
+    assert struct.pack("<f", func3.param_value) == struct.pack("<i", 203)   # the int32's bytes, not 203.0
+    assert ask(_read("CA_SV_CS2_TYPE")) == {"CA_SV_CS2_TYPE": 3}
+    assert ask(_read(index=8)) == {"PWM_MAIN_FUNC5": 101}
+    assert ask(_read("NO_SUCH")) == {}
+    assert ask(_read("PWM_MAIN_REV", system=7)) == {}
+
+
+@pytest.mark.parametrize("profile", list(PROFILES))
+def test_the_simulated_autopilots_ack_stream_requests(profile):
+    link = AutopilotLink(load_scenario(SCENARIO), profile=profile)
+    req = dialect.MAVLink_command_long_message(1, 1, dialect.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                               dialect.MAVLINK_MSG_ID_HIGHRES_IMU, 20000, 0, 0, 0, 0, 0)
+    (ack,) = link.parse(b"".join(link.answer(req)))
+    assert ack.get_type() == "COMMAND_ACK" and ack.result == dialect.MAV_RESULT_ACCEPTED
