@@ -1,5 +1,8 @@
 """`fdir import`: a ground station's telemetry log (`.tlog`) -> a recording `fdir replay` accepts.
 
+A PX4 ULog (`.ulg`) or ArduPilot DataFlash log (`.bin`) is first translated into the MAVLink
+messages the autopilot would have streamed (ulog.py, dataflash.py) and then imported the same way.
+
 The autopilot's messages (`tlog.AutopilotMessages`), as MAVLink 2 bytes, are fed with their tlog
 receive times through the service's own `Pipeline` built exactly as `fdir run --autopilot ...`
 builds it, with the flight `Recorder` as observer. The MCAP written is therefore what a live
@@ -140,6 +143,22 @@ def build_config(autopilot: str, estimator: str | None, service_config: str | os
     return select_autopilot(load_service_config(service_config, estimator=estimator), autopilot)
 
 
+def open_log(path: str | os.PathLike[str], progress: Callable[[int], None] | None = None) -> Any:
+    """The reader of `path` by its suffix: .ulg (PX4 ULog, translated to MAVLink: ulog.py), anything
+    else a tlog (`TlogReader`)."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".ulg":
+        from fdir_service.ulog import ulog_reader
+
+        return ulog_reader(path, progress)
+    return TlogReader(path, progress=progress)
+
+
+def default_autopilot(path: str | os.PathLike[str]) -> str:
+    """The profile a log's format implies: px4 for a ULog, ardupilot otherwise."""
+    return "px4" if Path(path).suffix.lower() == ".ulg" else "ardupilot"
+
+
 def import_tlog(tlog: str | os.PathLike[str], out: str | os.PathLike[str], *, autopilot: str = "ardupilot",
                 estimator: str | None = None, service_config: str | os.PathLike[str] | None = None,
                 particles: int | None = None, progress: Callable[[int], None] | None = None) -> ImportResult:
@@ -151,7 +170,7 @@ def import_tlog(tlog: str | os.PathLike[str], out: str | os.PathLike[str], *, au
 
     config = build_config(autopilot, estimator, service_config)
     tap, watch = _FrameTap(), _Watch()
-    reader = TlogReader(tlog, progress=progress)
+    reader = open_log(tlog, progress)
     keep = AutopilotMessages()
     recorder = Recorder(out)
     fed: Counter[str] = Counter()
@@ -170,7 +189,7 @@ def import_tlog(tlog: str | os.PathLike[str], out: str | os.PathLike[str], *, au
     return _result(Path(tlog), recorder.paths, reader, keep, fed, span, pipe, tap, watch)
 
 
-def _result(tlog: Path, paths: list[Path], reader: TlogReader, keep: AutopilotMessages, fed: Counter[str],
+def _result(tlog: Path, paths: list[Path], reader: Any, keep: AutopilotMessages, fed: Counter[str],
             span: list[int | None], pipe: Any, tap: _FrameTap, watch: _Watch) -> ImportResult:
     cache = pipe.assembler.sources
     set_by_log = {k: v for k, v in cache.params.items() if k in cache.defaults and v != cache.defaults[k]}
@@ -275,4 +294,5 @@ def result_json(r: ImportResult) -> dict[str, Any]:
     }
 
 
-__all__ = ["ImportResult", "RowRate", "import_tlog", "result_json", "row_rates", "summary_lines"]
+__all__ = ["ImportResult", "RowRate", "default_autopilot", "import_tlog", "open_log", "result_json",
+           "row_rates", "summary_lines"]

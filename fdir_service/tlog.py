@@ -63,7 +63,8 @@ class TlogMessage:
 class ReadStats:
     """What `TlogReader` read: file size and bytes in decoded packets (with their timestamps),
     packets decoded, MAVLink 1 packets re-framed, BAD_DATA packets, timestamps replaced by the last
-    good one, and the error that stopped the read early (None: read to the end)."""
+    good one, and the error that stopped the read early (None: read to the end); `kind` names the
+    file's format in the damage line."""
 
     file_bytes: int = 0
     good_bytes: int = 0
@@ -73,6 +74,7 @@ class ReadStats:
     bad_timestamps: int = 0
     unknown: int = 0
     stopped: str | None = None
+    kind: str = "tlog"
     by_type: Counter[str] = field(default_factory=Counter)
 
     @property
@@ -88,7 +90,7 @@ class ReadStats:
                  f"{self.bad_timestamps} bad timestamps"]
         if self.stopped:
             parts.append(f"reading stopped early: {self.stopped}")
-        return "damaged tlog: " + ", ".join(parts) + "; everything readable was imported"
+        return f"damaged {self.kind}: " + ", ".join(parts) + "; everything readable was imported"
 
 
 def as_mavlink2(packet: bytes, crc_extra: int) -> bytes:

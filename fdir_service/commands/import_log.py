@@ -18,12 +18,19 @@ the estimates; `fdir replay OUT.mcap --filter NAME` compares another filter on t
 
 A damaged tlog (cut short, bytes overwritten) is read up to and around the damage; what could not
 be read is counted in the summary. MAVLink 1 packets are re-framed as MAVLink 2.
+
+A PX4 ULog (.ulg, read with pyulog) or an ArduPilot DataFlash log (.bin, pymavlink's DFReader) is
+first translated into the MAVLink messages the autopilot's profile reads (one per logged sample,
+times = the log's boot time; a 1 Hz HEARTBEAT; the logged parameters as PARAM_VALUE), then
+imported the same way: `fdir replay` reads the result like any recording.
 """
 
 EPILOG = """\
 examples:
   fdir import flight.tlog --out flight.mcap                  # ArduPilot profile (the default)
   fdir import flight.tlog --out flight.mcap --autopilot auto # profile picked by the HEARTBEAT
+  fdir import flight.ulg --out flight.mcap                   # PX4 ULog, px4 profile
+  fdir import 00000042.BIN --out flight.mcap                # ArduPilot DataFlash log
   fdir replay flight.mcap --filter JMRPF                     # another filter on the same log
 Exit status: 0 imported, 1 unreadable file or no autopilot in it, 2 bad configuration.
 See docs/autopilots.md ("Logs").
@@ -32,13 +39,15 @@ See docs/autopilots.md ("Logs").
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "import", help="import a telemetry log (.tlog) into a replayable recording",
+        "import", help="import a telemetry log (.tlog) or an autopilot log (.ulg, .bin) into a replayable "
+                       "recording",
         description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("tlog", metavar="FILE.tlog", type=Path, help="a MAVLink telemetry log")
+    p.add_argument("tlog", metavar="FILE", type=Path,
+                   help="a MAVLink telemetry log (.tlog), PX4 ULog (.ulg) or ArduPilot DataFlash log (.bin)")
     p.add_argument("--out", metavar="OUT.mcap", type=Path, required=True, help="the recording to write")
-    p.add_argument("--autopilot", metavar="NAME", default="ardupilot",
-                   help="message profile, as `fdir run --autopilot`: ardupilot (default), auto, or a "
-                        "profile file")
+    p.add_argument("--autopilot", metavar="NAME", default=None,
+                   help="message profile, as `fdir run --autopilot`: ardupilot (default; px4 for a .ulg), "
+                        "auto, or a profile file")
     p.add_argument("--estimator", metavar="NAME|FILE", default=None,
                    help="estimator file (default: service.estimator in the service config)")
     p.add_argument("--config", metavar="FILE", type=Path, default=None,
@@ -67,7 +76,7 @@ def _progress_bar(total: int, enabled: bool):
 
 def run(args: argparse.Namespace) -> int:
     from fdir_service.errors import ConfigError
-    from fdir_service.log_import import import_tlog, result_json, summary_lines
+    from fdir_service.log_import import default_autopilot, import_tlog, result_json, summary_lines
 
     if args.particles is not None and args.particles <= 0:
         raise ConfigError(f"--particles: expected a positive number, got {args.particles}")
@@ -78,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
         return 1
     update, close = _progress_bar(size, not args.no_progress and sys.stderr.isatty())
     try:
-        r = import_tlog(args.tlog, args.out, autopilot=args.autopilot, estimator=args.estimator,
+        autopilot = args.autopilot or default_autopilot(args.tlog)
+        r = import_tlog(args.tlog, args.out, autopilot=autopilot, estimator=args.estimator,
                         service_config=args.config, particles=args.particles, progress=update)
     except OSError as exc:
         print(f"fdir import: {exc}", file=sys.stderr)
