@@ -212,7 +212,7 @@ def input_sources(pipe: Any) -> dict[str, str]:
     for fm in pipe.config.inputs:
         function = dict(fm.options).get("function")
         if function is None:
-            out[fm.name] = f"{fm.message}.{fm.field}"
+            out[fm.name] = f"{fm.message}.{fm.field}" if fm.field else f"{fm.message} ({fm.derive})"
             continue
         n = cache.servo_channel(int(function))
         out[fm.name] = (f"SERVO{n} (SERVO{n}_FUNCTION = {function:g})" if n is not None else
