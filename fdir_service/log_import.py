@@ -144,13 +144,17 @@ def build_config(autopilot: str, estimator: str | None, service_config: str | os
 
 
 def open_log(path: str | os.PathLike[str], progress: Callable[[int], None] | None = None) -> Any:
-    """The reader of `path` by its suffix: .ulg (PX4 ULog, translated to MAVLink: ulog.py), anything
-    else a tlog (`TlogReader`)."""
+    """The reader of `path` by its suffix: .ulg (PX4 ULog, translated to MAVLink: ulog.py), .bin
+    (ArduPilot DataFlash, translated: dataflash.py), anything else a tlog (`TlogReader`)."""
     suffix = Path(path).suffix.lower()
     if suffix == ".ulg":
         from fdir_service.ulog import ulog_reader
 
         return ulog_reader(path, progress)
+    if suffix == ".bin":
+        from fdir_service.dataflash import dataflash_reader
+
+        return dataflash_reader(path, progress)
     return TlogReader(path, progress=progress)
 
 

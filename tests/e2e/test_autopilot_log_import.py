@@ -1,7 +1,8 @@
 """`fdir import FILE.ulg --out OUT.mcap` on a real PX4 log (tests/data/README.md: pyulog's
 `sample_log_small.ulg`, PX4 v1.11.2 on a CubeOrange, MAV_TYPE 22 = a standard VTOL, 6.5 s of data
 on the ground), translated to the MAVLink messages px4.toml reads, then `fdir replay` on the
-result; a ULog cut short imports up to the cut with a message."""
+result; a ULog cut short imports up to the cut with a message. The same for `fdir import FILE.bin`
+on a real ArduPlane DataFlash log (ArduPlane V4.2.3 on an omnibusf4pro, on the ground)."""
 
 from __future__ import annotations
 
@@ -29,11 +30,16 @@ log's 595 airspeed samples are all negative (-2.4 .. -1.1 m/s, on the ground: th
 offset) and dropped as out of range (valid_min 0); asserted as such."""
 
 
+def import_into(tmp_path_factory, log: Path, autopilot: str) -> tuple[Path, object]:
+    """`log` imported with the profile `autopilot` into a fresh directory: (recording, result)."""
+    out = tmp_path_factory.mktemp(log.suffix[1:]) / f"{autopilot}.mcap"
+    return out, import_tlog(log, out, autopilot=autopilot, particles=PARTICLES)
+
+
 @pytest.fixture(scope="module")
 def imported(tmp_path_factory) -> tuple[Path, object]:
     """The real ULog imported with the px4 profile (the command's default for a .ulg)."""
-    out = tmp_path_factory.mktemp("ulg") / "px4.mcap"
-    return out, import_tlog(ULOG, out, autopilot="px4", particles=PARTICLES)
+    return import_into(tmp_path_factory, ULOG, "px4")
 
 
 def test_the_real_ulog_imports_with_the_rows_the_px4_profile_promises(imported):
@@ -99,3 +105,50 @@ def test_the_import_command_picks_the_px4_profile_for_a_ulog(tmp_path, capsys):
     summary = capsys.readouterr().out
     assert "HEARTBEAT autopilot 12" in summary and "damaged" not in summary
     assert McapLog(tmp_path / "cli.mcap").metadata["config"]["autopilot"] == "px4"
+
+
+BIN = ROOT / "tests" / "data" / "arduplane-omnibusf4pro-real-ground.bin"
+BIN_MIN_ROW_FRACTION = {"gnss_alt": 0.20, "u": 0.80, "w": 0.80, "theta": 0.90}
+"""Measured on the real ArduPlane DataFlash log (tests/data/README.md: ArduPlane V4.2.3 on an
+omnibusf4pro, 48.9 s on the ground): gnss_alt 209 / 851 = 24.6 % (GPS at 5 Hz), u, w 831 / 946 =
+87.8 % (XKF1 at ~21 Hz; 115 frames "frozen"), theta 928 / 978 = 94.9 %. The log holds no IMU,
+BARO, ARSP, CTUN or RCOU (its LOG_BITMASK): baro_alt, ax, az, airspeed have no samples and q
+(pitch rate from IMU GyrY) is NaN in every ATTITUDE and dropped; asserted as such."""
+
+
+@pytest.fixture(scope="module")
+def imported_bin(tmp_path_factory) -> tuple[Path, object]:
+    """The real DataFlash log imported with the ardupilot profile (the command's default)."""
+    return import_into(tmp_path_factory, BIN, "ardupilot")
+
+
+def test_the_real_dataflash_log_imports_with_the_rows_it_holds(imported_bin):
+    out, r = imported_bin
+    assert r.autopilot == (1, 1) and r.autopilot_type == 3 and r.read.damage() is None
+    assert r.fed["PARAM_VALUE"] == 1083 and r.fed["HEARTBEAT"] == 49 and r.fed["ATTITUDE"] == 1037
+    assert 48.0 < r.duration_s < 50.0 and r.estimates_finite
+    rows = {row.name: row for row in r.rows}
+    for name, floor in BIN_MIN_ROW_FRACTION.items():
+        assert rows[name].fraction >= floor, f"{name}: {rows[name].frames_with} / {rows[name].expected}"
+    for name in ("baro_alt", "q", "ax", "az", "airspeed"):
+        assert rows[name].frames_with == 0
+    assert r.rejected["q out of range"] == 1037
+    assert r.parameters_set["SERVO3_TRIM"] == 1100.0
+    assert McapLog(out).metadata["config"]["autopilot"] == "ardupilot"
+
+
+def test_the_dataflash_attitude_is_the_logged_one_in_radians(imported_bin):
+    out, _ = imported_bin
+    from pymavlink import mavutil
+
+    first = mavutil.mavlink_connection(str(BIN)).recv_match(type="ATT")
+    recorded = next(rec for _, rec in McapLog(out).iter_json("/mavlink/1/1/ATTITUDE"))
+    assert recorded["pitch"] == pytest.approx(math.radians(first.Pitch), abs=1e-6)
+    assert recorded["roll"] == pytest.approx(math.radians(first.Roll), abs=1e-6)
+
+
+def test_replay_of_the_dataflash_import_is_identical_and_finite(imported_bin):
+    out, r = imported_bin
+    same = replay(out)
+    assert same.identity.identical, same.identity.describe()
+    assert same.frames == r.frames and estimates_are_finite(same.replayed)
