@@ -23,13 +23,12 @@ from __future__ import annotations
 import math
 import os
 from collections import defaultdict
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from fdir_service.log_translate import MessageLog, TranslatedReader, value_at
+from fdir_service.log_translate import MessageLog, value_at
 from fdir_service.mavlink import dialect
 from fdir_service.tlog import ReadStats
 
@@ -192,12 +191,5 @@ def read_dataflash(path: str | os.PathLike[str]) -> tuple[MessageLog, ReadStats]
     return log, stats
 
 
-def dataflash_reader(path: str | os.PathLike[str],
-                     progress: Callable[[int], None] | None = None) -> TranslatedReader:
-    """A `TlogReader`-like reader of the DataFlash log's translated MAVLink messages."""
-    log, stats = read_dataflash(path)
-    return TranslatedReader(log, stats, progress)
-
-
-__all__ = ["MAV_AUTOPILOT_ARDUPILOTMEGA", "TYPES", "DataflashTranslator", "dataflash_reader",
+__all__ = ["MAV_AUTOPILOT_ARDUPILOTMEGA", "TYPES", "DataflashTranslator",
            "read_dataflash"]

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from fdir_service.log_translate import TranslatedReader
 from fdir_service.runtime.events import Event, FaultCleared, FaultDeclared
 from fdir_service.tlog import AutopilotMessages, ReadStats, TlogReader
 
@@ -148,13 +149,13 @@ def open_log(path: str | os.PathLike[str], progress: Callable[[int], None] | Non
     (ArduPilot DataFlash, translated: dataflash.py), anything else a tlog (`TlogReader`)."""
     suffix = Path(path).suffix.lower()
     if suffix == ".ulg":
-        from fdir_service.ulog import ulog_reader
+        from fdir_service.ulog import read_ulog
 
-        return ulog_reader(path, progress)
+        return TranslatedReader(*read_ulog(path), progress)
     if suffix == ".bin":
-        from fdir_service.dataflash import dataflash_reader
+        from fdir_service.dataflash import read_dataflash
 
-        return dataflash_reader(path, progress)
+        return TranslatedReader(*read_dataflash(path), progress)
     return TlogReader(path, progress=progress)
 
 

@@ -24,13 +24,12 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from fdir_service.log_translate import MessageLog, TranslatedReader, value_at
+from fdir_service.log_translate import MessageLog, value_at
 from fdir_service.mavlink import dialect
 from fdir_service.tlog import ReadStats
 
@@ -233,11 +232,4 @@ def read_ulog(path: str | os.PathLike[str]) -> tuple[MessageLog, ReadStats]:
     return log, stats
 
 
-def ulog_reader(path: str | os.PathLike[str],
-                progress: Callable[[int], None] | None = None) -> TranslatedReader:
-    """A `TlogReader`-like reader of the ULog's translated MAVLink messages."""
-    log, stats = read_ulog(path)
-    return TranslatedReader(log, stats, progress)
-
-
-__all__ = ["MAV_AUTOPILOT_PX4", "TOPICS", "UlogTranslator", "quaternion_to_euler", "read_ulog", "ulog_reader"]
+__all__ = ["MAV_AUTOPILOT_PX4", "TOPICS", "UlogTranslator", "quaternion_to_euler", "read_ulog"]

@@ -12,27 +12,13 @@ import numpy as np
 import pytest
 
 from fdir_service.atmosphere import pressure_from_altitude
-from fdir_service.autopilot_profile import select_autopilot
 from fdir_service.mavlink import dialect, new_mavlink
-from fdir_service.pipeline import Pipeline
-from fdir_service.runtime.events import AutopilotSelected
-from fdir_service.service_config import load_service_config
-from tests.helpers.service import fake_factory
-from tests.helpers.streams import Events
+from tests.helpers.autopilot_streams import body_to_ned, run, settled_rows
 
 ROLL, PITCH, YAW = 0.1, 0.05, 1.0
 U, W = 40.0, 2.0
 DELTA_E, DELTA_T = -0.05, 0.6     # rad (trailing edge up), throttle fraction
 
-
-def body_to_ned(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll), written out by hand."""
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
-                              math.cos(yaw), math.sin(yaw))
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    return rz @ ry @ rx
 
 
 GPS_EPOCH_US = 1_764_000_000_000_000
@@ -77,31 +63,9 @@ def ardupilot_bytes(seconds: float = 3.0, attitude: bool = True, gps_clock_us: i
     return b"".join(out)
 
 
-def run(stream: bytes, autopilot: str = "auto"):
-    config = select_autopilot(load_service_config(estimator="aerosonde-robust"), autopilot)
-    filters: list = []
-    events = Events()
-    p = Pipeline(config, observers=[events], filter_factory=fake_factory(filters))
-    for i in range(0, len(stream), 512):
-        p.feed(stream[i:i + 512], i)
-    p.close()
-    return p, [c for f in filters for c in f.calls], events
-
 
 def test_an_ardupilot_stream_gives_frames_with_every_row_finite():
-    p, calls, events = run(ardupilot_bytes())
-    assert [e.profile for e in events.of(AutopilotSelected)] == ["ardupilot"]
-    names = p.assembler.names
-    assert len(calls) >= 55
-    for _, y, mask, u in calls:
-        assert np.all(np.isfinite(y[mask])) and np.all(np.isnan(y[~mask]))
-        assert np.all(np.isfinite(u))
-    settled = calls[10:-1]
-    for j, name in enumerate(names):
-        seen = np.mean([m[j] for _, _, m, _ in settled])
-        assert seen == pytest.approx(0.25 if name == "gnss_alt" else 1.0, abs=0.05), name
-    y = np.array([c[1] for c in settled])
-    row = {n: y[:, j] for j, n in enumerate(names)}
+    p, row, u_in = settled_rows(ardupilot_bytes(), "ardupilot")
     # the pitch wobble (1e-3 rad) is not in the velocity: w reads it as up to 0.04 m/s, plus 1 cm/s steps
     assert np.nanmax(np.abs(row["u"] - U)) < 0.02 and np.nanmax(np.abs(row["w"] - W)) < 0.06
     assert row["az"] == pytest.approx(-9.80665) and row["theta"] == pytest.approx(PITCH, abs=1.1e-3)
@@ -109,7 +73,6 @@ def test_an_ardupilot_stream_gives_frames_with_every_row_finite():
     assert np.nanmax(np.abs(row["gnss_alt"] - 500.1)) < 0.1
     assert p.rejected_counts["GPS_RAW_INT repeated sample"] > 0
     assert np.all((row["airspeed"] >= U) & (row["airspeed"] < U + 1.0))
-    u_in = np.array([c[3] for c in settled])
     assert u_in[:, 0] == pytest.approx(DELTA_E, abs=1.1e-3) and u_in[:, 1] == pytest.approx(DELTA_T)
     assert "u not derivable" not in p.rejected_counts
 

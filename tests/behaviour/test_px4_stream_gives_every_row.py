@@ -16,7 +16,7 @@ import pytest
 from fdir_service.atmosphere import pressure_from_altitude
 from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.runtime.events import AutopilotSelected
-from tests.behaviour.test_ardupilot_stream_gives_every_row import body_to_ned, run
+from tests.helpers.autopilot_streams import body_to_ned, run, settled_rows
 
 ROLL, PITCH, YAW = 0.1, 0.05, 1.0
 U, W = 40.0, 2.0
@@ -68,26 +68,13 @@ def px4_bytes(seconds: float = 3.0) -> bytes:
 
 
 def test_a_px4_stream_gives_frames_with_every_row_finite():
-    p, calls, events = run(px4_bytes())
-    assert [e.profile for e in events.of(AutopilotSelected)] == ["px4"]
-    names = p.assembler.names
-    assert len(calls) >= 55
-    for _, y, mask, u in calls:
-        assert np.all(np.isfinite(y[mask])) and np.all(np.isnan(y[~mask]))
-        assert np.all(np.isfinite(u))
-    settled = calls[10:-1]
-    for j, name in enumerate(names):
-        seen = np.mean([m[j] for _, _, m, _ in settled])
-        assert seen == pytest.approx(0.25 if name == "gnss_alt" else 1.0, abs=0.05), name
-    y = np.array([c[1] for c in settled])
-    row = {n: y[:, j] for j, n in enumerate(names)}
+    p, row, u_in = settled_rows(px4_bytes(), "px4")
     assert np.nanmax(np.abs(row["u"] - U)) < 0.02 and np.nanmax(np.abs(row["w"] - W)) < 0.06
     assert row["az"] == pytest.approx(-9.80665, abs=1e-5) and row["ax"] == pytest.approx(0.1, abs=1e-6)
     assert row["theta"] == pytest.approx(PITCH, abs=1.1e-3)
     assert row["baro_alt"] == pytest.approx(500.0, abs=0.1)
     assert np.nanmax(np.abs(row["gnss_alt"] - 500.1)) < 0.1
     assert np.all((row["airspeed"] >= U) & (row["airspeed"] < U + 1.0))
-    u_in = np.array([c[3] for c in settled])
     assert u_in[:, 0] == pytest.approx(DELTA_E, abs=1.1e-3) and u_in[:, 1] == pytest.approx(DELTA_T)
     assert "u not derivable" not in p.rejected_counts and "delta_e not derivable" not in p.rejected_counts
 

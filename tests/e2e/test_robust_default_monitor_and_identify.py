@@ -5,47 +5,24 @@ fault-free flight."""
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 from fdir_service.airframe.params import load_airframe
-from sim_bridge.demo import GroundStation, free_udp_port
-
-ROOT = Path(__file__).resolve().parents[2]
+from sim_bridge.demo import GroundStation
+from tests.helpers.loopback import ROOT, fly_into_service
 
 
 def fly(tmp_path: Path, scenario: str, duration: float) -> tuple[GroundStation, Path]:
     """`sim-bridge fly` at 20x real time, the default `fdir run` recording; the ground station's view."""
-    p_ap, p_gcs = free_udp_port(), free_udp_port()
-    gs = GroundStation(p_gcs)
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
     log = tmp_path / f"{scenario}.mcap"
-    service = subprocess.Popen(
-        [sys.executable, "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
-         "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log)],
-        cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
-    sim = subprocess.Popen(
-        [sys.executable, "-m", "sim_bridge.cli", "fly", scenario, "--to", f"udpout:127.0.0.1:{p_ap}",
-         "--speed", "20", "--nav", "truth", "--duration", str(duration), "--wait", "60"],
-        cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
-    try:
-        while sim.poll() is None:
-            gs.poll(0.05)
-        end = time.monotonic() + 1.0
-        while time.monotonic() < end:
-            gs.poll(0.05)
-    finally:
-        service.send_signal(signal.SIGINT)
-        _, err_service = service.communicate(timeout=30)
-        _, err_sim = sim.communicate(timeout=30)
-        gs.close()
-    assert service.returncode == 0 and "aerosonde-robust" in err_service, err_service
-    assert sim.returncode == 0, err_sim
-    return gs, log
+    f = fly_into_service(["--record", str(log)],
+                         [scenario, "--speed", "20", "--nav", "truth", "--duration", str(duration),
+                          "--wait", "60"])
+    assert f.service_rc == 0 and "aerosonde-robust" in f.service_err, f.service_err
+    assert f.sim_rc == 0, f.sim_err
+    return f.gs, log
 
 
 def declared(gs: GroundStation) -> list[str]:

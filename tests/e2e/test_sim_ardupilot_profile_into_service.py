@@ -10,12 +10,7 @@ PARAM_REQUEST_LIST / READ with its SERVOn_* defaults, the simulated PX4 with px4
 from __future__ import annotations
 
 import math
-import os
-import signal
 import struct
-import subprocess
-import sys
-import time
 import tomllib
 from pathlib import Path
 
@@ -29,12 +24,11 @@ from fdir_service.recording.logtools import McapLog
 from fdir_service.replay import raw_input
 from fdir_service.runtime.derived import param_number
 from fdir_service.service_config import load_service_config
-from sim_bridge.demo import GroundStation, free_udp_port
 from sim_bridge.mavlink_bridge import AutopilotLink
 from sim_bridge.scenario import load_scenario
+from tests.helpers.loopback import ROOT, fly_into_service
 from tests.helpers.service import fake_factory
 
-ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = "real-calm-faultfree"
 SECONDS = 25.0
 PROFILES = {
@@ -50,33 +44,13 @@ def flight(request, tmp_path_factory):
     """(profile, ground station, service recording, truth recording, stderr of both) of one flight."""
     profile = request.param
     tmp = tmp_path_factory.mktemp(f"sim{profile}")
-    p_ap, p_gcs = free_udp_port(), free_udp_port()
-    gs = GroundStation(p_gcs)
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
     log, truth = tmp / "flight.mcap", tmp / "truth.mcap"
-    service = subprocess.Popen(
-        [sys.executable, "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
-         "--autopilot", "auto", "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(log)],
-        cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
-    sim = subprocess.Popen(
-        [sys.executable, "-m", "sim_bridge.cli", "fly", SCENARIO, "--profile", profile,
-         "--to", f"udpout:127.0.0.1:{p_ap}", "--speed", "20", "--nav", "truth",
-         "--duration", str(SECONDS), "--record", str(truth), "--wait", "60"],
-        cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
-    try:
-        while sim.poll() is None:
-            gs.poll(0.05)
-        end = time.monotonic() + 1.0
-        while time.monotonic() < end:
-            gs.poll(0.05)
-    finally:
-        service.send_signal(signal.SIGINT)
-        _, err_service = service.communicate(timeout=30)
-        _, err_sim = sim.communicate(timeout=30)
-        gs.close()
-    assert service.returncode == 0 and "aerosonde-robust" in err_service, err_service
-    assert sim.returncode == 0 and f"profile {profile}" in err_sim, err_sim
-    return profile, gs, log, truth, err_service + err_sim
+    f = fly_into_service(["--autopilot", "auto", "--record", str(log)],
+                         [SCENARIO, "--profile", profile, "--speed", "20", "--nav", "truth",
+                          "--duration", str(SECONDS), "--record", str(truth), "--wait", "60"])
+    assert f.service_rc == 0 and "aerosonde-robust" in f.service_err, f.service_err
+    assert f.sim_rc == 0 and f"profile {profile}" in f.sim_err, f.sim_err
+    return profile, f.gs, log, truth, f.service_err + f.sim_err
 
 
 def frames_of(log: Path) -> tuple[list[str], list, Pipeline]:

@@ -7,53 +7,27 @@ test_robust_default_monitor_and_identify.py)."""
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fdir_service.recording.logtools import McapLog
-from sim_bridge.demo import GroundStation, free_udp_port
-
-ROOT = Path(__file__).resolve().parents[2]
+from sim_bridge.demo import GroundStation
+from tests.helpers.loopback import fly_into_service
 
 
 def fly(tmp_path: Path, nav: str, duration: float, seed: int = 3) -> tuple[GroundStation, Path, str]:
-    p_ap, p_gcs = free_udp_port(), free_udp_port()
-    gs = GroundStation(p_gcs)
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
     # ch4 is a thesis world (no accelerometer, no pitot on the wire): its monitor is the
     # aerodynamic estimator, not the service's default robust one
-    service = subprocess.Popen(
-        [sys.executable, "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
-         "--estimator", "aerosonde",
-         "--gcs", f"udpout:127.0.0.1:{p_gcs}", "--record", str(tmp_path / f"flight-{nav}.mcap")],
-        cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
     truth = tmp_path / f"truth-{nav}.mcap"
-    sim = subprocess.Popen(
-        [sys.executable, "-m", "sim_bridge.cli", "fly", "ch4", "--to", f"udpout:127.0.0.1:{p_ap}",
-         "--speed", "0", "--nav", nav, "--seed", str(seed), "--duration", str(duration),
-         "--record", str(truth), "--wait", "60", "--timeout", "2"],
-        cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
-    try:
-        while sim.poll() is None:
-            gs.poll(0.05)
-        end = time.monotonic() + 0.5
-        while time.monotonic() < end:
-            gs.poll(0.05)
-    finally:
-        service.send_signal(signal.SIGINT)
-        _, err_service = service.communicate(timeout=30)
-        _, err_sim = sim.communicate(timeout=30)
-        gs.close()
-    assert service.returncode == 0, err_service
-    assert sim.returncode == 0, err_sim
-    return gs, truth, err_sim + err_service
+    f = fly_into_service(["--estimator", "aerosonde", "--record", str(tmp_path / f"flight-{nav}.mcap")],
+                         ["ch4", "--speed", "0", "--nav", nav, "--seed", str(seed), "--duration",
+                          str(duration), "--record", str(truth), "--wait", "60", "--timeout", "2"],
+                         tail_s=0.5)
+    assert f.service_rc == 0, f.service_err
+    assert f.sim_rc == 0, f.sim_err
+    return f.gs, truth, f.sim_err + f.service_err
 
 
 @pytest.fixture(scope="module")

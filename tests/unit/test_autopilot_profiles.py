@@ -12,7 +12,6 @@ import pytest
 
 from fdir_service.autopilot_profile import profile_path, select_autopilot
 from fdir_service.cli import main
-from fdir_service.errors import ConfigError
 from fdir_service.estimator_config import ACTUATORS, load_estimator
 from fdir_service.mavlink import dialect
 from fdir_service.runtime.derived import (
@@ -23,6 +22,7 @@ from fdir_service.runtime.derived import (
     pwm_to_range_fraction,
 )
 from fdir_service.service_config import load_service_config
+from tests.helpers.profiles import assert_bad_key_named
 
 D10 = math.radians(10.0)
 ARDUPILOT = profile_path("ardupilot").read_text()
@@ -156,12 +156,7 @@ def test_ardupilot_profile_maps_every_row_of_the_robust_estimator():
     ('[measurements.q]', '[measurements.qq]', "measurements.q: missing"),
 ])
 def test_a_bad_profile_key_is_named_with_its_file(tmp_path, old, new, key):
-    assert old in ARDUPILOT
-    bad = tmp_path / "bad-ardupilot.toml"
-    bad.write_text(ARDUPILOT.replace(old, new, 1))
-    with pytest.raises(ConfigError) as err:
-        select_autopilot(load_service_config(), str(bad))
-    assert str(err.value).startswith(f"{bad}: ") and key in str(err.value)
+    assert_bad_key_named(tmp_path, ARDUPILOT, old, new, key)
 
 
 def test_fdir_run_exits_2_on_a_bad_or_missing_profile(tmp_path, capsys):

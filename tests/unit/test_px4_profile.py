@@ -13,11 +13,11 @@ import pytest
 
 from fdir_service.atmosphere import pressure_from_altitude
 from fdir_service.autopilot_profile import profile_path, select_autopilot
-from fdir_service.errors import ConfigError
 from fdir_service.estimator_config import ACTUATORS, load_estimator
 from fdir_service.mavlink import dialect
 from fdir_service.runtime.derived import SourceCache, derive_value, param_number
 from fdir_service.service_config import load_service_config
+from tests.helpers.profiles import assert_bad_key_named
 
 PX4 = profile_path("px4").read_text()
 D10 = math.radians(10.0)
@@ -136,9 +136,4 @@ def test_px4_throttle_from_the_motor_channel():
     ('heartbeat_autopilot = 12', 'heartbeat_autopilot = -12', "autopilot.heartbeat_autopilot"),
 ])
 def test_a_bad_px4_profile_key_is_named_with_its_file(tmp_path, old, new, key):
-    assert old in PX4
-    bad = tmp_path / "bad-px4.toml"
-    bad.write_text(PX4.replace(old, new, 1))
-    with pytest.raises(ConfigError) as err:
-        select_autopilot(load_service_config(), str(bad))
-    assert str(err.value).startswith(f"{bad}: ") and key in str(err.value)
+    assert_bad_key_named(tmp_path, PX4, old, new, key)
