@@ -160,9 +160,9 @@ class ExitFold:
     """On a 1 -> 0 exit, half the exiting particles (v < pi10 / 2) fold their sensor fault into the
     airframe state instead of dropping it (faults.on_exit = "reset_or_fold"): x += G f, so the
     sensor's prediction is unchanged and it is the state that was wrong. The other half reset f to
-    0 (the fault ended). Without the fold a state error that a sensor's fault took the blame for
-    (the altitude after a gyro fault, say) can never leave mode 1: every exit mispredicts that
-    sensor by f.
+    its fault-free value (0, or the `DriftMemory` under mode0 = "drift": the fault ended).
+    Without the fold a state error that a sensor's fault took the blame for (the altitude after a
+    gyro fault, say) can never leave mode 1: every exit mispredicts that sensor by f.
 
     G (5, nf): per fault, the minimum-norm airframe change moving its row's prediction by f
     (H_r^T / |H_r|^2 on the airframe part of row r); zero columns for faults that do not fold.
