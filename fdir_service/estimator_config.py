@@ -50,6 +50,13 @@ ACTUATORS = ("delta_e", "delta_t")
 UNITS = {"m": 1.0, "m/s": 1.0, "rad": 1.0, "rad/s": 1.0, "deg": math.pi / 180.0,
          "deg/s": math.pi / 180.0, "1": 1.0}
 """A fault's display unit -> SI factor (value_SI = value_unit * factor)."""
+SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy")
+"""What a sensor fault does to its row (docs/faults.md): adds an offset; holds a value whatever the
+state does (stuck, blocked); multiplies its noise by k >= 1 (noisy)."""
+ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness")
+"""What an actuator fault does to its input (docs/faults.md): adds an offset; holds a position
+whatever the command (jammed); scales the command by a gain 0..1 (loss of effectiveness; an engine
+loss is the throttle's effectiveness gone)."""
 INITIALISATIONS = ("trim", "first_frame")
 DEFAULT_ESTIMATOR = "aerosonde"
 """`config/estimators/aerosonde.toml`: what `fdir run` monitors with no arguments."""
@@ -77,6 +84,11 @@ class FaultSpec:
     drift_sigma: float = 0.0
     """parts.mode0 = "drift": random-walk std (SI per sqrt(s)) of the fault entry in mode 0, the
     sensor's slow fault-free error (a gyro bias walk, a GNSS Gauss-Markov wander)."""
+    fault_type: str = "bias"
+    """What the fault does to its target (`SENSOR_FAULT_TYPES`, `ACTUATOR_FAULT_TYPES`), file key
+    `type`. Its entry in the extended state: bias the offset (SI); stuck and jammed the offset from
+    the truth that holds the target still (the published value is the held reading/position);
+    noisy k - 1 (k the noise multiplier); effectiveness g - 1 (g the remaining gain)."""
     on_exit: str = "reset"
     """A sensor fault's 1 -> 0 exit: "reset" (the fault ended: its entry to 0) or "reset_or_fold"
     (half the exits fold the entry into the airframe state instead: the state was wrong, this
@@ -234,10 +246,15 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         pi10=t.take("pi10", "number", None, check=UNIT_INTERVAL),
         drift_sigma=t.take("drift_sigma", "number", 0.0, check=NON_NEGATIVE),
         on_exit=t.take("on_exit", "string", "reset", choices=EXIT_CHOICES),
+        fault_type=t.take("type", "string", "bias",
+                          choices=ACTUATOR_FAULT_TYPES if target in ACTUATORS else SENSOR_FAULT_TYPES),
     )
     if spec.kind == "actuator" and spec.on_exit != "reset":
         raise ConfigError(f"{t.key('on_exit')}: an actuator fault has no sensor row to fold; "
                           f"expected \"reset\", got {spec.on_exit!r}")
+    if spec.fault_type != "bias" and spec.on_exit != "reset":
+        raise ConfigError(f"{t.key('on_exit')}: only a bias can be folded into the state; "
+                          f"expected \"reset\" for a {spec.fault_type} fault, got {spec.on_exit!r}")
     t.finish()
     return spec
 

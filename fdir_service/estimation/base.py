@@ -21,7 +21,11 @@ class StepOutput:
     (None when the filter was asked not to output it, e.g. `ParticleFilter.output_covariance`);
     fault_ids (nf,); fault_estimate (nf,) SI; fault_probability (nf,) = P(mode 1);
     n_eff: effective sample size (N for KF-type filters); resampled: whether this step resampled;
-    pfa, pmd (nf,) and transition (nf, 2, 2) only for adaptive filters (None otherwise).
+    pfa, pmd (nf,) and transition (nf, 2, 2) only for adaptive filters (None otherwise);
+    fault_types (nf,): each fault's type (`estimator_config.SENSOR_FAULT_TYPES` /
+    `ACTUATOR_FAULT_TYPES`; empty: all "bias"); fault_value (nf,) SI or None (= fault_estimate):
+    what a user reads per type: a bias's offset, a stuck sensor's held reading, a jammed
+    actuator's held position, a noisy sensor's noise multiplier k, an effectiveness's gain g.
     """
 
     t: float
@@ -35,6 +39,17 @@ class StepOutput:
     pfa: np.ndarray | None = None
     pmd: np.ndarray | None = None
     transition: np.ndarray | None = None
+    fault_types: tuple[str, ...] = ()
+    fault_value: np.ndarray | None = None
+
+    def type_of(self, j: int) -> str:
+        """Fault j's type ("bias" when the filter reports none)."""
+        return self.fault_types[j] if self.fault_types else "bias"
+
+    def value_of(self, j: int) -> float:
+        """Fault j's user-facing value (SI, or unitless for k and g): `fault_value` else the estimate."""
+        v = self.fault_value if self.fault_value is not None else self.fault_estimate
+        return float(v[j])
 
     @property
     def state(self) -> np.ndarray:
