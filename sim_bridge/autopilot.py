@@ -26,6 +26,8 @@ the model's F, B, trim and dt), and `update` runs on Python floats (no per-step 
 
 from __future__ import annotations
 
+import math
+
 import control
 import numpy as np
 
@@ -135,11 +137,18 @@ class Autopilot:
         self.u = self.u_trim.copy()
 
     def altitude_command(self, t: float) -> float:
-        """Commanded altitude (m) at time t (s): the last altitude step reached, else command.altitude_m."""
+        """Commanded altitude (m) at time t (s): the last altitude step reached, else command.altitude_m;
+        with command.climb_rate_mps, each step is a ramp at that rate from where the command was."""
         h = self.command.altitude_m
+        rate = self.command.climb_rate_mps
         for st in self._steps:
-            if t >= st.t_s - 1e-9:
+            if t < st.t_s - 1e-9:
+                break
+            if rate is None:
                 h = st.altitude_m
+            else:
+                dh = st.altitude_m - h
+                h += math.copysign(min(abs(dh), rate * (t - st.t_s)), dh)
         return h
 
     def update(self, t: float, z_nav: np.ndarray) -> np.ndarray:

@@ -102,6 +102,9 @@ class CommandConfig:
     altitude_m: float = 500.0
     airspeed_mps: float = 40.0
     altitude_steps: tuple[AltitudeStep, ...] = ()
+    climb_rate_mps: float | None = None
+    """None: each altitude step is a step of the command (the thesis); else the command ramps to
+    it at this rate (m/s), as a stock autopilot's climb-rate limit (ArduPlane TECS_CLMB_MAX) does."""
 
 
 WORLD_ROWS = MEASUREMENTS + ("airspeed", "ax", "az")
@@ -249,7 +252,8 @@ def _command(w: TomlTable, truth: TruthConfig) -> CommandConfig:
     command = CommandConfig(
         altitude_m=c.take("altitude_m", "number", truth.altitude_m),
         airspeed_mps=c.take("airspeed_mps", "number", truth.airspeed_mps, check=POSITIVE),
-        altitude_steps=tuple(steps))
+        altitude_steps=tuple(steps),
+        climb_rate_mps=c.take("climb_rate_mps", "number", None, check=POSITIVE))
     c.finish()
     return command
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fdir_service.estimation.fault_types import NOISY_SIGMA
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 
@@ -59,6 +60,10 @@ class AmplitudePredictor:
                 G[j, np.searchsorted(rows, r)] = 1.0
                 avail[j] = True
                 sigma[j] = self.meas.sigma[r]
+        for j, r in enumerate(lay.noisy_row):          # k - 1 keeps f: `fault_types.NoisySentinels` draws it
+            if r >= 0 and mask[r]:
+                avail[j] = True
+                sigma[j] = NOISY_SIGMA
         act = np.flatnonzero(lay.actuator_input >= 0)
         if act.size and rows.size:
             Hz = self.meas.H[rows, :N_AIRFRAME]

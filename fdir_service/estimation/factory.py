@@ -19,6 +19,12 @@ from fdir_service.airframe.params import AirframeParams, load_airframe
 from fdir_service.estimation.adaptive import AdaptiveTransition
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.correction import KalmanCorrection, Likelihood
+from fdir_service.estimation.fault_types import (
+    NoisySentinels,
+    TypedCorrection,
+    TypedEvolution,
+    TypedPredict,
+)
 from fdir_service.estimation.gating import GatedKF, frozen_fault_scenario
 from fdir_service.estimation.imm import IMMKalman
 from fdir_service.estimation.inputs import RowSplit
@@ -168,7 +174,7 @@ def _gyro_fault(estimator: EstimatorConfig, layout: FaultLayout) -> int | None:
     if estimator.settings.rate_sentinel != "window" or "theta" not in layout.measurements:
         return None
     for j, (kind, target) in enumerate(zip(layout.kinds, layout.targets, strict=True)):
-        if kind == "sensor" and target == "q":
+        if kind == "sensor" and target == "q" and layout.type_of(j) == "bias":
             return j
     return None
 
@@ -254,6 +260,23 @@ def _predictor(rec: Recipe, estimator: EstimatorConfig, process, q_std: np.ndarr
     return GaussianPredict(process, q_std)
 
 
+def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel) -> Parts:
+    """The parts with the typed faults' wrappers (`fault_types`): the evolution after the predict,
+    the noisy rows' likelihood around the correction and their prior draw after the sentinels."""
+    if not layout.typed:
+        return parts
+    evolution = TypedEvolution(layout, meas.H)
+    parts.predict = TypedPredict(parts.predict, evolution, layout, meas.H)
+    noisy = evolution.noisy
+    rows = layout.noisy_row[noisy]
+    parts.correction = TypedCorrection(parts.correction, evolution, rows, meas.sigma[rows])
+    if noisy.size:
+        high = np.array([estimator.faults[j].amplitude_max or 9.0 for j in noisy.tolist()])
+        parts.sentinel_weighting = NoisySentinels(parts.sentinel_weighting, noisy,
+                                                  np.minimum(1.0, high), high)
+    return parts
+
+
 def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
                    q_std: np.ndarray, N: int, roc=None) -> tuple[Parts, AmplitudePredictor]:
     """The parts of a particle filter of recipe `rec` (and its amplitude predictor)."""
@@ -262,7 +285,7 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
     amp = _amplitude(estimator, layout, meas, process, q_std)
     jump, sentinels = _jump_parts(rec, estimator, layout, meas, process, amp, roc)
     every = rec.resample == "every_step"
-    return Parts(
+    parts = Parts(
         predict=_predictor(rec, estimator, process, q_std),
         jump=jump, sentinel_weighting=sentinels,
         correction=(KalmanCorrection(jump.pin, rec.has_modes and est.mode0 == "drift")
@@ -270,7 +293,8 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
         resample_due=EveryStep() if every else BelowEffectiveSize(est.resample_threshold),
         resampler=resampler("systematic" if every else est.resampler),
         regulariser=_regulariser(rec, estimator, amp, _bandwidth(estimator, layout.n, N)),
-    ), amp
+    )
+    return (_typed(parts, estimator, layout, meas) if rec.has_modes else parts), amp
 
 
 def build_particle_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator,

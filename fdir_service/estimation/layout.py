@@ -2,7 +2,11 @@
 
 The extended state is x = [z (5,), f (nf,)] with z = [p_d, u, w, theta, q] and one fault entry
 per monitored fault, in the estimator file's order. A sensor fault adds to one measurement
-row; an actuator fault adds to one input (it enters the dynamics like that input).
+row; an actuator fault adds to one input (it enters the dynamics like that input). A fault's type
+(`estimator_config.SENSOR_FAULT_TYPES`, `ACTUATOR_FAULT_TYPES`) says how its entry evolves
+(`fault_types.TypedFaults`): every type but "noisy" keeps this additive form (a stuck sensor's entry is
+the offset from the truth that holds its reading; a jammed or weakened actuator's the offset from
+the command); a noisy sensor's entry is k - 1 and acts on its row's likelihood, not its value.
 """
 
 from __future__ import annotations
@@ -22,19 +26,31 @@ class FaultLayout:
     """Fault channels of an extended state.
 
     fault_ids, kinds ("sensor" | "actuator"), targets (measurement or input name) per fault;
-    measurements: the estimator's measurement rows (row order of the measurement model).
+    measurements: the estimator's measurement rows (row order of the measurement model);
+    types: each fault's type (empty: all "bias").
     """
 
     fault_ids: tuple[str, ...]
     kinds: tuple[str, ...]
     targets: tuple[str, ...]
     measurements: tuple[str, ...]
+    types: tuple[str, ...] = ()
 
     @classmethod
     def from_estimator(cls, config: EstimatorConfig) -> FaultLayout:
         """The layout of an estimator's monitored faults over its observed rows (IMU rows are inputs)."""
         return cls(tuple(f.id for f in config.faults), tuple(f.kind for f in config.faults),
-                   tuple(f.target for f in config.faults), tuple(config.observed))
+                   tuple(f.target for f in config.faults), tuple(config.observed),
+                   tuple(f.fault_type for f in config.faults))
+
+    def type_of(self, j: int) -> str:
+        """Fault j's type ("bias" when the layout names none)."""
+        return self.types[j] if self.types else "bias"
+
+    @property
+    def typed(self) -> bool:
+        """True when some fault is not a bias."""
+        return any(t != "bias" for t in self.types)
 
     @property
     def nf(self) -> int:
@@ -53,9 +69,17 @@ class FaultLayout:
 
     @property
     def sensor_row(self) -> np.ndarray:
-        """(nf,) measurement-row index of each sensor fault (-1 for actuator faults)."""
-        return np.array([self.measurements.index(t) if k == "sensor" else -1
-                         for k, t in zip(self.kinds, self.targets, strict=True)], dtype=int)
+        """(nf,) measurement-row index of each sensor fault that adds to its row (-1 for actuator
+        faults and for noisy sensors, whose entry scales the row's noise: `noisy_row`)."""
+        return np.array([self.measurements.index(t) if k == "sensor" and self.type_of(j) != "noisy"
+                         else -1 for j, (k, t) in enumerate(zip(self.kinds, self.targets, strict=True))],
+                        dtype=int)
+
+    @property
+    def noisy_row(self) -> np.ndarray:
+        """(nf,) measurement-row index of each noisy-sensor fault (-1 for every other fault)."""
+        return np.array([self.measurements.index(t) if self.type_of(j) == "noisy" else -1
+                         for j, t in enumerate(self.targets)], dtype=int)
 
     @property
     def actuator_input(self) -> np.ndarray:

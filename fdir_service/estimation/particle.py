@@ -203,6 +203,7 @@ class ParticleFilter:
                          fault_probability=np.asarray(self.fault_probability, dtype=float).copy(),
                          n_eff=n_eff, resampled=bool(resampled))
         self.parts.jump.annotate(out)
+        self.parts.predict.annotate(out)
         return out
 
     def top_particles(self, k: int = 20) -> tuple[np.ndarray, np.ndarray]:

@@ -26,6 +26,9 @@ class GaussianPredict:
         X += noise
         return X
 
+    def annotate(self, out) -> None:
+        """Nothing to add to the step's output (`fault_types.TypedPredict` adds the typed values)."""
+
 
 class ModeGatedPredict(GaussianPredict):
     """As `GaussianPredict`, but a fault entry gets noise only in mode 1 (mode-0 entries are pinned

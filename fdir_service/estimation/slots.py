@@ -26,6 +26,10 @@ class Predictor(Protocol):
         """The predicted cloud (a new (n, N) array)."""
         ...
 
+    def annotate(self, out: StepOutput) -> None:
+        """Add to the step's output (the typed faults' values, `fault_types.TypedPredict`)."""
+        ...
+
 
 class JumpPart(Protocol):
     """jump: the modes' Markov chain (`jump.NoJump`, `jump.MarkovJump`)."""

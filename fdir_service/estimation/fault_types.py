@@ -1,0 +1,197 @@
+"""Fault types: how a monitored fault's entry behaves beyond an additive bias (docs/faults.md).
+
+Every type but "noisy" keeps the additive form of SPEC section 5 (the entry adds to its row or its
+input, so the measurement model, the amplitude A of eq. 4.13-4.16, the sentinels and the Kalman
+correction are those of a bias); what the type changes is how the entry evolves in mode 1 between
+two frames (`TypedEvolution`):
+
+    bias           f+ = f                          an offset (a random walk with sigma_f)
+    stuck          f+ = f - h_r (z+ - z)           the reading y_r = h_r z + f holds whatever z does
+    jammed         f+ = f - (u_k - u_k-1)          the applied input u + f holds whatever u does
+    effectiveness  f+ = f + phi (u_k - u_k-1)      the applied input (1 + phi) u follows the command
+                   with phi = clip(f / u_k-1, -1, 0) scaled down; g = 1 + phi is the remaining gain
+
+So a stuck sensor is told from a biased one when its state moves, a jammed surface from an offset
+one when its command moves. A noisy sensor's entry is k - 1 >= 0, k the multiplier of its row's
+noise: it leaves the row's prediction alone and scales its likelihood (`TypedCorrection`); a new one
+is drawn from its prior k - 1 ~ U(1, amplitude_max) (`NoisySentinels`). The parts wrap the predict,
+correction and sentinel slots of a recipe (factory.py), so a filter without typed faults is unchanged.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+
+if TYPE_CHECKING:
+    from fdir_service.estimation.base import StepOutput
+    from fdir_service.estimation.frame import Frame
+
+NOISY_SIGMA = 0.5
+"""The amplitude sigma of a noisy entry (k - 1): k below 1.5 is a faint fault (`jump.FaintExit`)."""
+
+
+def _indices(layout: FaultLayout, kind: str) -> np.ndarray:
+    return np.array([j for j in range(layout.nf) if layout.type_of(j) == kind], dtype=int)
+
+
+class TypedEvolution:
+    """The mode-1 evolution of typed fault entries (module docstring), vectorised per type.
+
+    layout: the fault layout; H (m, n): the measurement matrix (a stuck row's h_r is its airframe part).
+    """
+
+    def __init__(self, layout: FaultLayout, H: np.ndarray) -> None:
+        self.stuck = _indices(layout, "stuck")
+        self.stuck_h = np.asarray(H, dtype=float)[layout.sensor_row[self.stuck], :N_AIRFRAME] \
+            if self.stuck.size else np.zeros((0, N_AIRFRAME))
+        self.jammed = _indices(layout, "jammed")
+        self.jammed_input = layout.actuator_input[self.jammed]
+        self.weak = _indices(layout, "effectiveness")
+        self.weak_input = layout.actuator_input[self.weak]
+        self.noisy = _indices(layout, "noisy")
+
+    @property
+    def needs_state(self) -> bool:
+        """True when a stuck sensor needs the airframe state before the prediction."""
+        return self.stuck.size > 0
+
+    def apply(self, z_before: np.ndarray | None, X: np.ndarray, modes: np.ndarray,
+              u: np.ndarray, u_prev: np.ndarray | None) -> None:
+        """Evolve the typed entries of the predicted cloud X (n, N) in place: z_before (5, N) the
+        airframe states before the prediction (stuck sensors), u, u_prev the commands of this and
+        the last frame (None: the first frame, no command change)."""
+        F = X[N_AIRFRAME:]
+        if self.stuck.size:
+            dz = self.stuck_h @ (X[:N_AIRFRAME] - z_before)          # (k, N)
+            F[self.stuck] -= dz * modes[self.stuck]
+        if u_prev is not None and (self.jammed.size or self.weak.size):
+            du = np.asarray(u[:2], dtype=float) - u_prev[:2]
+            F[self.jammed] -= du[self.jammed_input, None] * modes[self.jammed]
+            self._scale_weak(F, modes, du, u_prev)
+        if self.noisy.size:
+            F[self.noisy] = np.maximum(F[self.noisy], 0.0)
+
+    def _scale_weak(self, F: np.ndarray, modes: np.ndarray, du: np.ndarray, u_prev: np.ndarray) -> None:
+        """Effectiveness entries follow the command change by their gain loss phi (in place)."""
+        if not self.weak.size:
+            return
+        phi = self.gain_loss(F[self.weak], u_prev[self.weak_input, None])
+        F[self.weak] += phi * du[self.weak_input, None] * modes[self.weak]
+
+    @staticmethod
+    def gain_loss(f: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """phi = clip(f / u, -1, 0) for additive offsets f and commands u (broadcast); 0 where u = 0."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            phi = np.where(u != 0.0, f / np.where(u != 0.0, u, 1.0), 0.0)
+        return np.clip(phi, -1.0, 0.0)
+
+
+class TypedPredict:
+    """A predict part followed by the typed entries' evolution (`TypedEvolution`); keeps the last
+    command, and reports each fault's user-facing value (`annotate`)."""
+
+    def __init__(self, inner, evolution: TypedEvolution, layout: FaultLayout, H: np.ndarray) -> None:
+        self.inner = inner
+        self.process = inner.process
+        self.evolution = evolution
+        self.layout = layout
+        self.H = np.asarray(H, dtype=float)
+        self.u_prev: np.ndarray | None = None
+
+    def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
+                rng: np.random.Generator) -> np.ndarray:
+        z_before = X[:N_AIRFRAME].copy() if self.evolution.needs_state else None
+        Xp = self.inner.predict(X, modes, u, rng)
+        self.evolution.apply(z_before, Xp, modes, u, self.u_prev)
+        self.u_prev = np.array(u[:2], dtype=float)
+        return Xp
+
+    def annotate(self, out: StepOutput) -> None:
+        """out.fault_types, and out.fault_value: a stuck row's held reading f + h_r z, a jammed
+        input's held position f + u, an effectiveness's gain 1 + phi, a noisy row's k = 1 + f."""
+        out.fault_types = self.layout.types
+        value = out.fault_estimate.copy()
+        ev, x = self.evolution, out.x_mean
+        value[ev.stuck] = x[N_AIRFRAME + ev.stuck] + ev.stuck_h @ x[:N_AIRFRAME]
+        if self.u_prev is not None:
+            value[ev.jammed] = x[N_AIRFRAME + ev.jammed] + self.u_prev[ev.jammed_input]
+            value[ev.weak] = 1.0 + ev.gain_loss(x[N_AIRFRAME + ev.weak], self.u_prev[ev.weak_input])
+        value[ev.noisy] = 1.0 + out.fault_estimate[ev.noisy]
+        out.fault_value = value
+
+
+class TypedCorrection:
+    """A correction part that respects the typed entries:
+    - a stuck sensor's held reading c = h_r z + f is not corrected: its entry anti-tracks the
+      correction's move of the state (f -= h_r dz), or the held value would follow the readings
+      and a stuck hypothesis, free of its row, would fit any flight better than a working sensor;
+    - a noisy row's entry is not in H, so not corrected either, and a mode-1 particle whose row r
+      has noise k sigma_r is weighted by N(e; 0, v1) / N(e; 0, v0) more, e = y_r - h_r x its
+      innovation, v0 = sigma_r^2 + the cloud's predicted spread of the row, v1 = v0 + (k^2 - 1)
+      sigma_r^2.
+
+    evolution: the `TypedEvolution` (stuck rows); rows (k,): the noisy entries' measurement rows;
+    sigma (k,): those rows' sigma.
+    """
+
+    def __init__(self, inner, evolution: TypedEvolution, rows: np.ndarray, sigma: np.ndarray) -> None:
+        self.inner = inner
+        self.evolution = evolution
+        self.faults = evolution.noisy
+        self.rows = np.asarray(rows, dtype=int)
+        self.sigma = np.asarray(sigma, dtype=float)
+        self.held = np.concatenate([evolution.stuck, evolution.noisy])
+
+    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
+        extra = self._extra_loglik(X, w, modes, frame) if self.faults.size else None
+        held = X[N_AIRFRAME + self.held].copy()
+        z = X[:N_AIRFRAME].copy() if self.evolution.needs_state else None
+        ll = self.inner.update(X, w, modes, frame)
+        X[N_AIRFRAME + self.held] = held
+        if z is not None:
+            ev = self.evolution
+            X[N_AIRFRAME + ev.stuck] -= (ev.stuck_h @ (X[:N_AIRFRAME] - z)) * modes[ev.stuck]
+        return ll if extra is None else ll + extra
+
+    def _extra_loglik(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray,
+                      frame: Frame) -> np.ndarray | None:
+        """(N,) log N(e; 0, v1) - log N(e; 0, v0) summed over the noisy rows that arrived."""
+        present = frame.mask[self.rows]
+        if not present.any():
+            return None
+        reduced = np.cumsum(frame.mask) - 1                     # full row -> row of the frame
+        ri = reduced[self.rows[present]]
+        pred = frame.mm.H[ri] @ X                               # (k, N)
+        e = frame.yv[ri, None] - pred
+        spread = (pred - (pred @ w)[:, None]) ** 2 @ w          # (k,)
+        s2 = self.sigma[present] ** 2
+        v0 = (s2 + spread)[:, None]
+        k = 1.0 + np.maximum(X[N_AIRFRAME + self.faults[present]], 0.0) * modes[self.faults[present]]
+        v1 = v0 + (k * k - 1.0) * s2[:, None]
+        return (-0.5 * e * e * (1.0 / v1 - 1.0 / v0) - 0.5 * np.log(v1 / v0)).sum(axis=0)
+
+
+class NoisySentinels:
+    """A sentinel weighting plus the noisy faults' proposal: a noisy entry that just jumped gets
+    k - 1 ~ U(low, high) from its prior (no importance term: proposal = prior).
+
+    faults (k,): the noisy entries; low, high (k,): the prior's bounds of k - 1."""
+
+    def __init__(self, inner, faults: np.ndarray, low: np.ndarray, high: np.ndarray) -> None:
+        self.inner = inner
+        self.faults = np.asarray(faults, dtype=int)
+        self.low = np.asarray(low, dtype=float)
+        self.high = np.asarray(high, dtype=float)
+
+    def weigh(self, X: np.ndarray, frame: Frame, sentinels: np.ndarray,
+              rng: np.random.Generator) -> np.ndarray | None:
+        bonus = self.inner.weigh(X, frame, sentinels, rng)
+        for j, lo, hi in zip(self.faults.tolist(), self.low.tolist(), self.high.tolist(), strict=True):
+            cols = np.flatnonzero(sentinels[j])
+            if cols.size:
+                X[N_AIRFRAME + j, cols] = rng.uniform(lo, hi, cols.size)
+        return bonus
