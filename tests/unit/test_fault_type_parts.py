@@ -1,0 +1,175 @@
+"""The fault-type parts on their own (fdir_service/estimation/fault_types.py): how stuck, jammed,
+weakened and noisy entries evolve, how the correction treats them, how a noisy fault is proposed,
+what a user reads, and the estimator file's checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fdir_service.errors import ConfigError
+from fdir_service.estimation.correction import Likelihood
+from fdir_service.estimation.factory import build_filter
+from fdir_service.estimation.fault_types import (
+    NoisySentinels,
+    TypedCorrection,
+    TypedEvolution,
+    TypedPredict,
+)
+from fdir_service.estimation.frame import Frame
+from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+from fdir_service.estimation.measurement import MeasurementModel
+from fdir_service.estimation.sentinels import ThesisSentinels
+from fdir_service.estimator_config import estimator_document, load_estimator, parse_estimator
+
+ROWS = ("baro_alt", "theta", "q")
+SIGMA = np.array([1.5, 0.015, 0.003])
+# theta bias, theta stuck, baro noisy, elevator jammed, throttle effectiveness
+LAYOUT = FaultLayout(("th", "th_st", "baro_nz", "de_jam", "dt_eff"),
+                     ("sensor", "sensor", "sensor", "actuator", "actuator"),
+                     ("theta", "theta", "baro_alt", "delta_e", "delta_t"), ROWS,
+                     ("bias", "stuck", "noisy", "jammed", "effectiveness"))
+MEAS = MeasurementModel.build(LAYOUT, SIGMA)
+
+
+def cloud(N: int = 4) -> np.ndarray:
+    X = np.zeros((LAYOUT.n, N))
+    X[0] = -500.0
+    X[3] = 0.05
+    return X
+
+
+def test_a_noisy_entry_is_not_in_the_measurement_matrix_and_the_others_add_to_their_row():
+    H = MEAS.H
+    assert H[1, N_AIRFRAME + 0] == 1.0 and H[1, N_AIRFRAME + 1] == 1.0
+    assert not H[:, N_AIRFRAME + 2].any()
+    assert LAYOUT.noisy_row.tolist() == [-1, -1, 0, -1, -1]
+    assert LAYOUT.sensor_row.tolist() == [1, 1, -1, -1, -1]
+
+
+def test_stuck_entries_in_mode_1_hold_their_reading_while_the_state_moves():
+    ev = TypedEvolution(LAYOUT, MEAS.H)
+    X = cloud()
+    X[N_AIRFRAME + 1] = [0.01, 0.01, 0.0, 0.0]
+    modes = np.zeros((LAYOUT.nf, 4), dtype=bool)
+    modes[1, :2] = True
+    z_before = X[:N_AIRFRAME].copy()
+    reading_before = MEAS.H[1] @ X
+    X[3] += 0.1                                        # every particle pitches up 0.1 rad
+    ev.apply(z_before, X, modes, np.zeros(2), None)
+    reading = MEAS.H[1] @ X
+    np.testing.assert_allclose(reading[:2], reading_before[:2])          # stuck: held
+    np.testing.assert_allclose(reading[2:] - reading_before[2:], 0.1)    # working: follows
+
+
+def test_a_jammed_actuator_holds_its_position_and_a_weak_one_scales_the_command_change():
+    ev = TypedEvolution(LAYOUT, MEAS.H)
+    X = cloud(2)
+    modes = np.ones((LAYOUT.nf, 2), dtype=bool)
+    X[N_AIRFRAME + 3] = 0.02                            # jammed 0.02 rad off the command -0.03
+    X[N_AIRFRAME + 4] = -0.3 * 0.5                      # throttle at 70 % effectiveness, command 0.5
+    u_prev, u = np.array([-0.03, 0.5]), np.array([0.01, 0.6])
+    ev.apply(X[:N_AIRFRAME].copy(), X, modes, u, u_prev)
+    np.testing.assert_allclose(u[0] + X[N_AIRFRAME + 3], -0.03 + 0.02)     # held at -0.01
+    np.testing.assert_allclose(u[1] + X[N_AIRFRAME + 4], 0.7 * 0.6)         # 70 % of the new command
+
+
+def test_effectiveness_gain_loss_is_clipped_to_a_physical_gain():
+    phi = TypedEvolution.gain_loss(np.array([-0.9, 0.3, -0.2, 0.1]), np.array([0.5, 0.5, 0.0, -0.5]))
+    np.testing.assert_allclose(phi, [-1.0, 0.0, 0.0, -0.2])
+
+
+def frame(y: np.ndarray) -> Frame:
+    return Frame.of(1.0, y, np.ones(3, dtype=bool), np.zeros(2), MEAS)
+
+
+def test_a_noisy_mode_1_particle_wins_on_a_wild_reading_and_loses_on_a_quiet_one():
+    ev = TypedEvolution(LAYOUT, MEAS.H)
+    corr = TypedCorrection(Likelihood(), ev, np.array([0]), SIGMA[:1])
+    X = cloud(2)
+    X[N_AIRFRAME + 2] = [0.0, 3.0]                      # k = 1 and k = 4
+    modes = np.zeros((LAYOUT.nf, 2), dtype=bool)
+    modes[2, 1] = True
+    w = np.full(2, 0.5)
+    y_base = MEAS.H @ X[:, 0]
+    wild = corr.update(X.copy(), w, modes, frame(y_base + np.array([6.0, 0, 0])))     # 4 sigma off
+    quiet = corr.update(X.copy(), w, modes, frame(y_base))
+    assert wild[1] - wild[0] > 3.0
+    assert quiet[1] - quiet[0] < -1.0
+
+
+def test_the_correction_holds_a_stuck_reading_and_a_noisy_entry():
+    class MoveEverything:
+        def update(self, X, w, modes, frame):
+            X += 0.1
+            return np.zeros(X.shape[1])
+
+    ev = TypedEvolution(LAYOUT, MEAS.H)
+    corr = TypedCorrection(MoveEverything(), ev, np.array([0]), SIGMA[:1])
+    X = cloud(2)
+    X[N_AIRFRAME + 2] = 2.0
+    modes = np.ones((LAYOUT.nf, 2), dtype=bool)
+    corr.update(X, np.full(2, 0.5), modes, frame(MEAS.H @ X[:, 0]))
+    np.testing.assert_allclose(X[N_AIRFRAME + 0], 0.1)                  # a bias is corrected
+    np.testing.assert_allclose(X[3] + X[N_AIRFRAME + 1], 0.05)          # a stuck reading held
+    np.testing.assert_allclose(X[N_AIRFRAME + 2], 2.0)                  # a noisy k held
+
+
+def test_a_new_noisy_fault_is_drawn_from_its_prior_of_k():
+    part = NoisySentinels(ThesisSentinels(), np.array([2]), np.array([1.0]), np.array([9.0]))
+    X = cloud(1000)
+    sent = np.zeros((LAYOUT.nf, 1000), dtype=bool)
+    sent[2, :500] = True
+    part.weigh(X, frame(np.zeros(3)), sent, np.random.default_rng(0))
+    k1 = X[N_AIRFRAME + 2]
+    assert 1.0 <= k1[:500].min() and k1[:500].max() <= 9.0 and abs(k1[:500].mean() - 5.0) < 0.3
+    assert not k1[500:].any()
+
+
+def test_what_a_user_reads_per_type():
+    class Still:
+        process = None
+
+        def predict(self, X, modes, u, rng):
+            return X.copy()
+
+        def annotate(self, out):
+            pass
+
+    from fdir_service.estimation.base import StepOutput
+
+    pred = TypedPredict(Still(), TypedEvolution(LAYOUT, MEAS.H), LAYOUT, MEAS.H)
+    pred.predict(cloud(1), np.zeros((LAYOUT.nf, 1), dtype=bool), np.array([-0.03, 0.5]), None)
+    x = cloud(1)[:, 0]
+    x[N_AIRFRAME:] = [0.01, 0.02, 3.0, 0.02, -0.25]
+    out = StepOutput(1.0, x, None, LAYOUT.fault_ids, x[N_AIRFRAME:].copy(), np.zeros(5), 1.0, False)
+    pred.annotate(out)
+    assert out.fault_types == LAYOUT.types and out.type_of(2) == "noisy"
+    np.testing.assert_allclose(out.fault_value, [0.01, 0.05 + 0.02, 4.0, -0.03 + 0.02, 0.5])
+
+
+def test_the_catalogue_estimator_runs_one_step_with_every_type_and_reports_them():
+    est = load_estimator("aerosonde-catalogue")
+    filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=200)
+    m = len(est.measurements)
+    y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0])[:m]
+    out = filt.step(0.05, y, np.ones(m, dtype=bool), np.array([-0.03, 0.5]))
+    assert set(out.fault_types) == {"bias", "stuck", "noisy", "jammed", "effectiveness"}
+    assert np.isfinite(out.fault_value).all()
+
+
+@pytest.mark.parametrize("target, kind", [("delta_e", "noisy"), ("theta", "jammed"), ("q", "blocked")])
+def test_a_fault_type_that_does_not_fit_its_target_fails_naming_the_key(target, kind):
+    doc, _ = estimator_document("aerosonde-robust")
+    doc["faults"][2]["target"] = target
+    doc["faults"][2]["type"] = kind
+    doc["faults"][2]["on_exit"] = "reset"
+    with pytest.raises(ConfigError, match=r"faults\[2\]\.type"):
+        parse_estimator(doc, "x.toml")
+
+
+def test_only_a_bias_folds_into_the_state():
+    doc, _ = estimator_document("aerosonde-robust")
+    doc["faults"][2]["type"] = "stuck"                  # theta, on_exit = "reset_or_fold"
+    with pytest.raises(ConfigError, match="only a bias"):
+        parse_estimator(doc, "x.toml")
