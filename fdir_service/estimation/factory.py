@@ -273,7 +273,7 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     if noisy.size:
         high = np.array([estimator.faults[j].amplitude_max or 9.0 for j in noisy.tolist()])
         parts.sentinel_weighting = NoisySentinels(parts.sentinel_weighting, noisy,
-                                                  np.minimum(1.0, high), high)
+                                                  np.minimum(0.5, high), high)
     return parts
 
 

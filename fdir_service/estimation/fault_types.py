@@ -30,8 +30,8 @@ if TYPE_CHECKING:
     from fdir_service.estimation.base import StepOutput
     from fdir_service.estimation.frame import Frame
 
-NOISY_SIGMA = 0.5
-"""The amplitude sigma of a noisy entry (k - 1): k below 1.5 is a faint fault (`jump.FaintExit`)."""
+NOISY_SIGMA = 0.25
+"""The amplitude sigma of a noisy entry (k - 1): k below 1.25 is a faint fault (`jump.FaintExit`)."""
 
 
 def _indices(layout: FaultLayout, kind: str) -> np.ndarray:
