@@ -134,6 +134,8 @@ class FilterSettings:
     pi10: float = 0.01
     pi10_faint: float = 0.0              # per step: exit rate of a mode-1 fault fainter than one frame's
     #                                      amplitude noise (0: pi10 for all)
+    pi_switch: float = 0.0               # per step: a mode-1 fault hands its offset to another type of
+    #                                      the same item (stuck <-> bias ...; `fault_types.TypeSwitch`)
     saddlepoint_window: int = 3
     sentinel_weighting: str = "prior"    # "thesis" (Alg. 4.1 as written) | "prior" (p(f | jump) / q(f))
     jitter: str = "per_mode"             # "global" (one kernel) | "per_mode"
@@ -344,6 +346,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         pi01=f.take("pi01", "number", d.pi01, check=UNIT_INTERVAL),
         pi10=f.take("pi10", "number", d.pi10, check=UNIT_INTERVAL),
         pi10_faint=f.take("pi10_faint", "number", d.pi10_faint, check=UNIT_INTERVAL),
+        pi_switch=f.take("pi_switch", "number", d.pi_switch, check=UNIT_INTERVAL),
         saddlepoint_window=f.take("saddlepoint_window", "integer", d.saddlepoint_window,
                                   check=POSITIVE),
         rate_window_s=f.take("rate_window_s", "number", d.rate_window_s, check=POSITIVE),

@@ -24,6 +24,8 @@ from fdir_service.estimation.fault_types import (
     TypedCorrection,
     TypedEvolution,
     TypedPredict,
+    TypeSwitch,
+    sibling_pairs,
 )
 from fdir_service.estimation.gating import GatedKF, frozen_fault_scenario
 from fdir_service.estimation.imm import IMMKalman
@@ -234,8 +236,11 @@ def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, me
         if folding.any() else NoFold()
     faint = estimator.settings.pi10_faint
     exit_ = FaintExit(amp.sigma, faint) if faint > 0 else None
+    pairs = sibling_pairs(layout)
+    switch = TypeSwitch(pairs, estimator.settings.pi_switch) \
+        if pairs.size and estimator.settings.pi_switch > 0 else None
     jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry, fold, exit_,
-                      exit_to_drift=estimator.settings.mode0 == "drift")
+                      exit_to_drift=estimator.settings.mode0 == "drift", switch=switch)
     return jump, _sentinel_weighting(estimator, layout, meas, amp, carry)
 
 

@@ -175,9 +175,50 @@ class TypedCorrection:
         return (-0.5 * e * e * (1.0 / v1 - 1.0 / v0) - 0.5 * np.log(v1 / v0)).sum(axis=0)
 
 
+def sibling_pairs(layout: FaultLayout) -> np.ndarray:
+    """(p, 2) ordered pairs (a, b) of additive fault entries of different types on the same item
+    (a measurement row, or an input): the hand-overs `TypeSwitch` may make."""
+    items = [(k, t) for k, t in zip(layout.kinds, layout.targets, strict=True)]
+    additive = [j for j in range(layout.nf) if layout.type_of(j) != "noisy"]
+    pairs = [(a, b) for a in additive for b in additive
+             if a != b and items[a] == items[b] and layout.type_of(a) != layout.type_of(b)]
+    return np.array(pairs, dtype=int).reshape(-1, 2)
+
+
+class TypeSwitch:
+    """A mode-1 fault may hand its offset to another type of the same item (parts.pi_switch per
+    step and pair): entry a leaves mode 1 (back to its fault-free value), entry b enters it with
+    a's offset. All additive types read that offset the same way, so the particle's prediction of
+    this frame is unchanged; only the next frames tell a stuck sensor from a biased one. Without
+    it, the type that took the fault first keeps it until sentinels of the other happen to win.
+
+    pairs (p, 2): `sibling_pairs`; rate: the hand-over probability per step and pair.
+    """
+
+    def __init__(self, pairs: np.ndarray, rate: float) -> None:
+        self.pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+        self.rate = float(rate)
+
+    def apply(self, F: np.ndarray, modes: np.ndarray, reset_to: np.ndarray | None,
+              rng: np.random.Generator) -> None:
+        """Hand over in place: F (nf, N) fault entries, modes (nf, N); reset_to (nf,) the fault-free
+        values (None: 0)."""
+        if not self.pairs.size:
+            return
+        v = rng.random((len(self.pairs), F.shape[1]))
+        for (a, b), vv in zip(self.pairs.tolist(), v, strict=True):
+            go = modes[a] & ~modes[b] & (vv < self.rate)
+            if go.any():
+                F[b, go] = F[a, go]
+                F[a, go] = 0.0 if reset_to is None else reset_to[a]
+                modes[a, go] = False
+                modes[b, go] = True
+
+
 class NoisySentinels:
     """A sentinel weighting plus the noisy faults' proposal: a noisy entry that just jumped gets
-    k - 1 ~ U(low, high) from its prior (no importance term: proposal = prior).
+    k - 1 from its prior, k log-uniform on [1 + low, 1 + high] (a scale's prior: k = 1.5 to 3 is
+    as likely as 3 to 6), with no importance term (proposal = prior).
 
     faults (k,): the noisy entries; low, high (k,): the prior's bounds of k - 1."""
 
@@ -193,5 +234,5 @@ class NoisySentinels:
         for j, lo, hi in zip(self.faults.tolist(), self.low.tolist(), self.high.tolist(), strict=True):
             cols = np.flatnonzero(sentinels[j])
             if cols.size:
-                X[N_AIRFRAME + j, cols] = rng.uniform(lo, hi, cols.size)
+                X[N_AIRFRAME + j, cols] = np.exp(rng.uniform(np.log1p(lo), np.log1p(hi), cols.size)) - 1.0
         return bonus

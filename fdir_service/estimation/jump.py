@@ -273,19 +273,22 @@ class MarkovJump:
 
     transition: `FixedTransition` | `adaptive.AdaptiveTransition`; amplitude: the A_f predictor;
     forced_zero: mode-0 fault entries pinned at 0 (parts.mode0); carry: `NoCarry` | `ActuatorCarry`;
-    fold: what an exit does with a sensor fault, `NoFold` | `ExitFold` (faults.on_exit).
+    fold: what an exit does with a sensor fault, `NoFold` | `ExitFold` (faults.on_exit); exit:
+    `ModelExit` | `FaintExit`; switch: None | `fault_types.TypeSwitch` (parts.pi_switch).
     After `jump`, `sentinels` (nf, N) are the particles that jumped 0 -> 1 and `last_amplitude`
     (nf, N) their predicted amplitudes (indices before this step's resampling).
     """
 
     def __init__(self, transition, amplitude: AmplitudePredictor, forced_zero: bool, carry,
-                 fold=None, exit=None, exit_to_drift: bool = False) -> None:
+                 fold=None, exit=None, exit_to_drift: bool = False, switch=None) -> None:
         self.transition = transition
         self.amplitude = amplitude
         self.forced_zero = bool(forced_zero)
         self.carry = carry
         self.fold = fold or NoFold()
         self.exit = exit or ModelExit()
+        self.switch = switch
+        """None, or a `fault_types.TypeSwitch`: a fault handed to another type of its item."""
         nf = amplitude.layout.nf
         self.drift = DriftMemory(nf) if exit_to_drift else None
         """parts.mode0 = "drift": an exit's entry returns to the fault-free value (`DriftMemory`)."""
@@ -312,6 +315,8 @@ class MarkovJump:
                               reset_to)
         self.carry.apply(X, F, carried)
         self.fold.apply(X, folded)
+        if self.switch is not None:
+            self.switch.apply(F, modes, reset_to, rng)
         return self.transition.log_weight_correction(before, modes, avail)
 
     def pin(self, X: np.ndarray, modes: np.ndarray) -> None:

@@ -1,0 +1,93 @@
+"""The catalogue estimator (config/estimators/aerosonde-catalogue.toml) in moderate turbulence, on a
+flight that climbs at 3 m/s from 20 s: a sensor that sticks is declared stuck, not biased; a sensor
+whose noise triples is declared noisy with k about right; the climb alone raises nothing. The
+sensor faults are put on the recorded rows after the flight (the autopilot flew on a healthy
+navigation), with the service's declare hysteresis."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fdir_service.estimation.factory import build_filter
+from fdir_service.estimator_config import load_estimator
+from sim_bridge.campaign import _first_frame_start
+from sim_bridge.scenario import AltitudeStep, load_scenario
+from sim_bridge.simulate import run as simulate
+from sim_bridge.yardstick import Hysteresis, declared
+
+ONSET_S, END_S = 24.0, 36.0
+
+
+@pytest.fixture(scope="module")
+def climb():
+    """(scenario, trajectory, estimator rows): 40 s in moderate turbulence, climbing from 20 s."""
+    est = load_estimator("aerosonde-catalogue")
+    sc = load_scenario("real-turbulence-faultfree")
+    command = dataclasses.replace(sc.command, altitude_steps=(AltitudeStep(20.0, 560.0),),
+                                  climb_rate_mps=3.0)
+    sc = dataclasses.replace(sc, estimator=est, command=command)
+    tr = simulate(sc, 3, seconds=40.0)
+    rows = sc.estimator_rows()
+    return sc, tr, tr.y[:, rows].copy(), tr.mask[:, rows] & (rows >= 0)
+
+
+def monitor(sc, tr, y, mask):
+    """(declared (K, nf) bool by the service's hysteresis, fault_value (K, nf)) of the catalogue."""
+    def new(x0=None):
+        kw = {} if x0 is None else {"x0": x0}
+        return build_filter("RJMRPF", sc.estimator, np.random.default_rng(1), **kw)
+
+    filt = _first_frame_start(sc, new)(y[0], mask[0])
+    outs = [filt.step(tr.t[k], y[k], mask[k], tr.u[k]) for k in range(len(tr.t))]
+    P = np.array([o.fault_probability for o in outs])
+    dec = np.stack([declared(tr.t, P[:, j], Hysteresis()) for j in range(P.shape[1])], axis=1)
+    return dec, np.array([o.fault_value for o in outs])
+
+
+def during(t: np.ndarray) -> np.ndarray:
+    return (t >= ONSET_S) & (t < END_S)
+
+
+def ids_declared(sc, dec: np.ndarray, when: np.ndarray) -> set[str]:
+    return {f.id for j, f in enumerate(sc.estimator.faults) if dec[when, j].any()}
+
+
+def test_the_climb_alone_raises_nothing(climb):
+    sc, tr, y, mask = climb
+    dec, _ = monitor(sc, tr, y, mask)
+    assert ids_declared(sc, dec, tr.t > 2.0) == set()
+
+
+def test_a_stuck_attitude_sensor_in_a_climb_is_declared_stuck_within_3_s(climb):
+    sc, tr, y, mask = climb
+    j = sc.estimator.measurements.index("theta")
+    on = during(tr.t)
+    y = y.copy()
+    y[on, j] = y[np.flatnonzero(on)[0] - 1, j] + 0.01 * np.random.default_rng(0).standard_normal(on.sum())
+    dec, _ = monitor(sc, tr, y, mask)
+    stuck = [f.id for f in sc.estimator.faults].index("th_st")
+    first = tr.t[np.flatnonzero(dec[:, stuck] & on)[0]]
+    assert first - ONSET_S < 3.0
+    assert dec[on & (tr.t > ONSET_S + 3.0), stuck].mean() > 0.9
+    assert ids_declared(sc, dec, on) <= {"th_st"}
+
+
+def test_a_barometer_whose_noise_triples_is_declared_noisy_with_its_k(climb):
+    sc, tr, y, mask = climb
+    j = sc.estimator.measurements.index("baro_alt")
+    on = during(tr.t)
+    y = y.copy()
+    true_sigma = sc.sensors.sigma["baro_alt"]
+    y[on, j] += np.sqrt(8.0) * true_sigma * np.random.default_rng(0).standard_normal(on.sum())
+    dec, value = monitor(sc, tr, y, mask)
+    noisy = [f.id for f in sc.estimator.faults].index("baro_nz")
+    first = tr.t[np.flatnonzero(dec[:, noisy] & on)[0]]
+    assert first - ONSET_S < 2.0
+    assumed = sc.estimator.sigma[j]
+    k_true = 3.0 * true_sigma / assumed                      # k is against the assumed noise
+    k_est = np.median(value[on & (tr.t > ONSET_S + 3.0), noisy])
+    assert abs(k_est - k_true) < 0.5
+    assert ids_declared(sc, dec, on) <= {"baro_nz"}
