@@ -104,7 +104,10 @@ class RunResult:
     filter_s: float = 0.0
     wall_s: float = 0.0
     world_faults: np.ndarray | None = None
-    """(K, nw) the world's own injected faults (SI, its fault order), monitored or not."""
+    """(K, nw) the world's own injected faults (SI, its fault order), monitored or not: the
+    additive-equivalent truth (`fault_types`)."""
+    world_active: np.ndarray | None = None
+    """(K, nw) bool: each world fault active (`fault_types.activity`)."""
 
 
 class _TimedNav:
@@ -235,6 +238,7 @@ def _run_job(job: Job) -> RunResult:
         transition=_stack_opt(outs, "transition"),
         filter_s=nav.seconds, wall_s=time.perf_counter() - t_start,
         world_faults=np.asarray(traj.faults, f32).reshape(len(outs), -1),
+        world_active=None if traj.active is None else np.asarray(traj.active, bool).reshape(len(outs), -1),
     )
 
 
@@ -271,6 +275,15 @@ class FilterRuns:
     failures: list[RunFailure] = field(default_factory=list)
     world_faults: np.ndarray | None = None
     """(R, K, nw) the world's injected faults per run."""
+    world_active: np.ndarray | None = None
+    """(R, K, nw) bool: each world fault active per run (False in a failed run)."""
+
+    def fault_active(self, scenario: Scenario) -> np.ndarray:
+        """(R, K, nf) bool: each monitored fault's world fault active (by id; `f_true != 0` when
+        the runs kept no activity)."""
+        if self.world_active is None:
+            return self.f_true != 0.0
+        return scenario.estimator_fault_truth(self.world_active)
 
 
 @dataclass
@@ -300,7 +313,8 @@ def stack_runs(results: list[RunResult | RunFailure]) -> FilterRuns:
                    for a in ("z_true", "z_hat", "f_true", "f_hat", "prob", "n_eff", "top_x", "top_w",
                              "pfa", "pmd", "transition", "world_faults")}
             r = RunResult(r.filter, r.run, r.sim_seed, ref.t, top_t=ref.top_t, filter_s=np.nan,
-                          wall_s=np.nan, **nan)
+                          wall_s=np.nan, **nan,
+                          world_active=None if ref.world_active is None else np.zeros_like(ref.world_active))
         rs.append(r)
 
     def st(attr):
@@ -313,6 +327,7 @@ def stack_runs(results: list[RunResult | RunFailure]) -> FilterRuns:
         top_w=st("top_w"), pfa=st("pfa"), pmd=st("pmd"), transition=st("transition"),
         filter_s=np.array([r.filter_s for r in rs]), wall_s=np.array([r.wall_s for r in rs]),
         sim_seeds=np.array([r.sim_seed for r in rs]), failures=failures, world_faults=st("world_faults"),
+        world_active=st("world_active"),
     )
 
 

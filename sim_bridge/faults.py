@@ -74,13 +74,34 @@ def channel_value(channel: FaultChannel, t: float | np.ndarray) -> float | np.nd
     return float(total) if total.ndim == 0 else total
 
 
+def component_active(comp: ProfileComponent, t: float) -> bool:
+    """Whether one profile component is active at t (s): inside [start_s, end_s) and, for an
+    intermittent component, in an on phase (a typed fault acts only while active)."""
+    if not (comp.start_s - EDGE_TOL_S <= t < comp.end_s - EDGE_TOL_S):
+        return False
+    if comp.shape == "intermittent":
+        return (t - comp.start_s + EDGE_TOL_S) % (comp.on_s + comp.off_s) < comp.on_s
+    return True
+
+
+def channel_active(channel: FaultChannel, t: float) -> bool:
+    """Whether any of the channel's profile components is active at t (s)."""
+    return any(component_active(c, float(t)) for c in channel.profile)
+
+
+def fault_activity(scenario: Scenario, t: float) -> np.ndarray:
+    """(nf,) bool: each fault's profile active at t (s), in the scenario's fault order."""
+    return np.array([channel_active(ch, t) for ch in scenario.faults], dtype=bool)
+
+
 def fault_vector(scenario: Scenario, t: float) -> np.ndarray:
     """All fault values (nf,) at time t (s), SI, in the scenario's fault order."""
     return np.array([channel_value(ch, t) for ch in scenario.faults], dtype=float)
 
 
 def fault_active_intervals(scenario: Scenario) -> list[tuple[str, float, float]]:
-    """(fault id, start_s, end_s) of every profile component, for plots and summaries."""
+    """(fault id, start_s, end_s) of every profile component, for plots and summaries (an
+    intermittent component's off phases included)."""
     return [(ch.id, c.start_s, c.end_s) for ch in scenario.faults for c in ch.profile]
 
 

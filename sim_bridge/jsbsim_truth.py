@@ -10,7 +10,7 @@ files). `JSBSimTruth` honours `world.TruthEngine` as `world.Truth` does:
 - inputs in the project's convention: delta_e (rad, positive pitches nose down) is
   fcs/elevator-pos-rad; delta_t (0..1, more is more thrust) is fcs/throttle-cmd-norm, which the
   model's motor controller reads as a propeller speed command (aerosonde.xml, channel "Throttle");
-  actuator faults add to the command exactly as in `Truth.applied_input`; the input is held over
+  actuator faults act on the command exactly as in `Truth.applied_input`; the input is held over
   each frame;
 - one frame of scenario.dt_s runs ceil(120 dt) JSBSim steps (120 Hz at dt = 0.05 s).
 
@@ -50,7 +50,8 @@ import numpy as np
 
 from fdir_service.airframe import AirframeParams
 from fdir_service.paths import config_dir
-from sim_bridge.scenario import ACTUATORS, Scenario
+from sim_bridge.fault_types import ActuatorFaults
+from sim_bridge.scenario import Scenario
 from sim_bridge.wind import wind_ned
 from sim_bridge.world import AirData
 
@@ -145,8 +146,7 @@ class JSBSimTruth:
         self.dt = scenario.dt_s
         self.substeps = max(1, math.ceil(RATE_HZ * self.dt - 1e-9))
         self._seed = int(rng.integers(1, 2**31 - 1)) if sky.turbulence.active else 0
-        self._act = [(ACTUATORS.index(ch.target), j) for j, ch in enumerate(scenario.faults)
-                     if ch.kind == "actuator"]
+        self.actuator_faults = ActuatorFaults(scenario.faults)
         self.reset()
 
     # ------------------------------------------------------------------ TruthEngine
@@ -172,17 +172,20 @@ class JSBSimTruth:
         self._start_turbulence()
         self.z = self._read_z()
         self.u_applied = self.trim.u.copy()
+        self.actuator_faults.reset()
 
-    def applied_input(self, u_cmd: np.ndarray, fault_values: np.ndarray) -> np.ndarray:
-        """The input the airframe feels: u_cmd (2,) plus the actuator faults (SI), as `Truth`."""
-        u = np.array(u_cmd, dtype=float)
-        for i, j in self._act:
-            u[i] += fault_values[j]
-        return u
+    def applied_input(self, u_cmd: np.ndarray, fault_values: np.ndarray,
+                      active: np.ndarray | None = None) -> np.ndarray:
+        """The input (2,) the airframe feels: u_cmd (2,) with the actuator faults (profile values
+        (nf,) SI, activity (nf,) bool or None: value != 0), as `Truth`."""
+        return self.actuator_faults.applied(u_cmd, fault_values, active, self.u_applied)
 
-    def step(self, u_cmd: np.ndarray, fault_values: np.ndarray) -> np.ndarray:
-        """Advance one frame with u_cmd (2,) and the fault values (nf,) held; returns the new z (5,)."""
-        u = self.applied_input(u_cmd, fault_values)
+    def step(self, u_cmd: np.ndarray, fault_values: np.ndarray,
+             active: np.ndarray | None = None) -> np.ndarray:
+        """Advance one frame with u_cmd (2,) and the faults' profile values (nf,) and activity
+        (nf,) bool (None: value != 0) held; returns the new z (5,)."""
+        u = self.applied_input(u_cmd, fault_values, active)
+        self.actuator_faults.commit(fault_values, active, self.u_applied)
         n = self._n
         n["elevator"].set_double_value(float(u[0]) / ELEVATOR_RANGE_RAD)
         n["throttle"].set_double_value(float(u[1]))

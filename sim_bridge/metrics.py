@@ -7,7 +7,8 @@ Used by the Monte Carlo campaigns (`sim_bridge.report`) and the replay scorer
 Definitions:
 - RMSE_k = sqrt(mean over runs of (estimate - truth)^2) at step k; a single run's RMSE is
   sqrt(time-mean of (estimate - truth)^2). NaN (failed run, missing frame) is left out.
-- A fault *episode* is a maximal stretch of steps where the true fault is active (non-zero).
+- A fault *episode* is a maximal stretch of steps where the true fault is active (non-zero, or
+  the world's recorded activity when given: a typed fault can be active at value 0).
   *Detection delay*: time from the episode's first step to the first step inside it at which
   P(fault) > 0.5 and stays above 0.5 for `HOLD_S` = 0.25 s (5 steps at 20 Hz).
   *False-alarm time fraction*: share of fault-free steps with P(fault) > 0.5.
@@ -156,10 +157,11 @@ def missed_fraction(prob: np.ndarray, active: np.ndarray, threshold: float = P_T
 
 
 def detection_metrics(t: np.ndarray, prob: np.ndarray, truth: np.ndarray, hold_s: float = HOLD_S,
-                      threshold: float = P_THRESHOLD) -> dict:
+                      threshold: float = P_THRESHOLD, active: np.ndarray | None = None) -> dict:
     """Detection figures of one fault channel over R runs (SPEC section 8).
 
-    t (K,) s; prob (R, K) = P(fault); truth (R, K) true fault value (0 where fault-free).
+    t (K,) s; prob (R, K) = P(fault); truth (R, K) true fault value (0 where fault-free); active
+    (R, K) bool where the fault is active (None: truth != 0).
     Returns delay_s (mean over detected episodes of: time from onset to the first step inside the
     episode at which P > threshold then holds for hold_s), delay_median_s, detected_fraction (of
     episodes), false_alarm_fraction (of fault-free steps with P > threshold) and missed_fraction (of
@@ -169,7 +171,7 @@ def detection_metrics(t: np.ndarray, prob: np.ndarray, truth: np.ndarray, hold_s
     prob = np.atleast_2d(np.asarray(prob, float))
     truth = np.atleast_2d(np.asarray(truth, float))
     hold_steps = hold_steps_of(float(np.median(np.diff(t))) if t.size > 1 else 1.0, hold_s)
-    active = truth != 0.0
+    active = truth != 0.0 if active is None else np.atleast_2d(np.asarray(active, bool))
     delays: list[float] = []
     episodes = 0
     for r in range(prob.shape[0]):

@@ -18,9 +18,10 @@ _MEAS_STYLE = {"color": "0.55", "lw": 0.6, "alpha": 0.8}
 
 
 def _shade_faults(ax, traj: Trajectory, scenario: Scenario) -> None:
-    """Shade, per fault channel, the time spans where its true value is non-zero."""
+    """Shade, per fault channel, the time spans where it is active (its true value non-zero, or the
+    trajectory's recorded activity: a typed fault can be active at value 0)."""
     for j in range(len(scenario.faults)):
-        on = np.abs(traj.faults[:, j]) > 0.0
+        on = np.abs(traj.faults[:, j]) > 0.0 if traj.active is None else traj.active[:, j]
         if not on.any():
             continue
         edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(int), [0]])))

@@ -164,7 +164,9 @@ def summarise(camp: Campaign) -> dict:
         ok = np.ones(fr.z_hat.shape[0], bool)
         ok[[f.run for f in fr.failures]] = False
         rmse = {q: table_columns(c, t) for q, c in rmse_curves(sc, fr).items()}
-        det = {f.id: detection_metrics(t, fr.prob[ok, :, j], fr.f_true[ok, :, j], hold_s=hold)
+        active = fr.fault_active(sc)
+        det = {f.id: detection_metrics(t, fr.prob[ok, :, j], fr.f_true[ok, :, j], hold_s=hold,
+                                       active=active[ok, :, j])
                for j, f in enumerate(sc.estimator.faults)}
         doc["filters"][name] = {
             "rmse": rmse, "detection": det,
@@ -184,7 +186,7 @@ def _yardstick(camp: Campaign, fr: FilterRuns) -> dict | None:
         return None
     sc = camp.scenario
     return yardstick(fr.t, fr.prob, [f.id for f in sc.estimator.faults], fr.world_faults,
-                     [f.id for f in sc.faults])
+                     [f.id for f in sc.faults], world_active=fr.world_active)
 
 
 def check_orderings(results: dict[str, dict], orderings: tuple = ORDERINGS) -> list[dict]:
@@ -368,9 +370,9 @@ def figures(  # noqa: C901 - figure assembly: one figure after another, each a f
 
     t_ref = camp.filters[names[0]].t
     windows = {}
-    f_true_ref = camp.filters[names[0]].f_true
+    active_ref = camp.filters[names[0]].fault_active(sc)
     for j in range(nf):     # the episodes of estimated fault j in the world's injected faults
-        active = np.any(f_true_ref[:, :, j] != 0.0, axis=0)
+        active = np.any(active_ref[:, :, j], axis=0)
         windows[j] = [(t_ref[a], t_ref[b - 1]) for a, b in fault_episodes(active)]
 
     def shade(ax, j):

@@ -35,6 +35,17 @@ from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, TomlTable, load_toml
 from sim_bridge.world_config import RealSky, parse_real_sky
 
 PROFILE_SHAPES = ("step", "exponential", "ramp", "intermittent")
+WORLD_SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy", "blocked")
+"""What a world sensor fault does to its row (`sim_bridge.fault_types`); "blocked" is the pitot's
+(airspeed row only)."""
+WORLD_ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness")
+"""What a world actuator fault does to its input (`sim_bridge.fault_types`)."""
+STUCK_NOISE = ("kept", "none")
+"""A stuck row's noise: the row's usual noise on top of the held value, or none."""
+_PURE_NUMBER_TYPES = {"noisy": "a noise multiplier k >= 1",
+                      "effectiveness": "a remaining gain g in [0, 1]"}
+"""Types whose amplitude is a pure number (unit "1"), and what it is."""
+_AMPLITUDE_OK = {"noisy": lambda lo, hi: lo >= 1.0, "effectiveness": lambda lo, hi: lo >= 0.0 and hi <= 1.0}
 
 
 @dataclass(frozen=True)
@@ -63,9 +74,13 @@ class ProfileComponent:
 
 @dataclass(frozen=True)
 class FaultChannel:
-    """An injected additive fault on a measurement row (`kind` sensor) or an input (`kind` actuator).
+    """An injected fault on a measurement row (`kind` sensor) or an input (`kind` actuator).
 
     `profile` is its time course in the world (summed components, SI); `unit` is for reports.
+    `fault_type` (file key `type`) is what the profile's value does to the target
+    (`sim_bridge.fault_types`): "bias" adds it (the default); sensors also "stuck", "noisy",
+    "blocked" (airspeed only); actuators "jammed", "effectiveness". `noise` ("kept" | "none"): a
+    stuck row's noise on top of the held value.
     """
 
     id: str
@@ -73,6 +88,8 @@ class FaultChannel:
     kind: str
     unit: str
     profile: tuple[ProfileComponent, ...]
+    fault_type: str = "bias"
+    noise: str = "kept"
 
     @property
     def unit_scale(self) -> float:
@@ -205,10 +222,23 @@ def _timing(t: TomlTable) -> tuple[tuple[float, float], tuple[float, float], boo
     return start, end, False
 
 
-def _profile(t: TomlTable, scale: float) -> ProfileComponent:
+def _amplitude(t: TomlTable, fault_type: str) -> tuple[float, float]:
+    """The amplitude (range) in the fault's unit; a noisy's k >= 1, an effectiveness's g in [0, 1]."""
+    amp = _number_or_range(t, "amplitude")
+    if fault_type in _AMPLITUDE_OK:
+        if not _AMPLITUDE_OK[fault_type](*amp):
+            raise ConfigError(f"{t.key('amplitude')}: expected {_PURE_NUMBER_TYPES[fault_type]} "
+                              f"for a {fault_type} fault, got {list(amp) if amp[0] != amp[1] else amp[0]}")
+        if t.peek("random_sign"):
+            raise ConfigError(f"{t.key('random_sign')}: expected false for a {fault_type} fault "
+                              "(its amplitude is a factor), got true")
+    return amp
+
+
+def _profile(t: TomlTable, scale: float, fault_type: str = "bias") -> ProfileComponent:
     shape = t.take("shape", "string", choices=PROFILE_SHAPES)
     start, end, is_duration = _timing(t)
-    amp = _number_or_range(t, "amplitude")
+    amp = _amplitude(t, fault_type)
     ranges = (("start_s", start), ("amplitude", (amp[0] * scale, amp[1] * scale)))
     varies = [(k, lo, hi) for k, (lo, hi) in ranges if hi > lo]
     if is_duration:
@@ -223,14 +253,32 @@ def _profile(t: TomlTable, scale: float) -> ProfileComponent:
     return comp
 
 
+def _fault_type(t: TomlTable, target: str) -> tuple[str, str]:
+    """The fault's `type` for its target and a stuck fault's `noise` option."""
+    actuator = target in ACTUATORS
+    ftype = t.take("type", "string", "bias",
+                   choices=WORLD_ACTUATOR_FAULT_TYPES if actuator else WORLD_SENSOR_FAULT_TYPES)
+    if ftype == "blocked" and target != "airspeed":
+        raise ConfigError(f"{t.key('type')}: \"blocked\" is the pitot's (target \"airspeed\"); for "
+                          f"target {target!r} expected one of bias, stuck, noisy, got {ftype!r}")
+    if ftype != "stuck" and t.peek("noise") is not None:
+        raise ConfigError(f"{t.key('noise')}: only a stuck fault has a noise option; expected no "
+                          f"noise key for a {ftype} fault, got {t.peek('noise')!r}")
+    return ftype, t.take("noise", "string", "kept", choices=STUCK_NOISE)
+
+
 def _fault(t: TomlTable, measurements: tuple[str, ...]) -> FaultChannel:
     fid = t.take("id", "string")
     target = t.take("target", "string", choices=measurements + ACTUATORS)
+    ftype, noise = _fault_type(t, target)
     unit = t.take("unit", "string", choices=tuple(UNITS))
-    comps = tuple(_profile(pt, UNITS[unit]) for pt in t.tables("profile"))
+    if ftype in _PURE_NUMBER_TYPES and unit != "1":
+        raise ConfigError(f"{t.key('unit')}: expected \"1\" for a {ftype} fault (its amplitude is "
+                          f"{_PURE_NUMBER_TYPES[ftype]}), got {unit!r}")
+    comps = tuple(_profile(pt, UNITS[unit], ftype) for pt in t.tables("profile"))
     t.finish()
     return FaultChannel(id=fid, target=target, kind="actuator" if target in ACTUATORS else "sensor",
-                        unit=unit, profile=comps)
+                        unit=unit, profile=comps, fault_type=ftype, noise=noise)
 
 
 def _truth(w: TomlTable) -> TruthConfig:

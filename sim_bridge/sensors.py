@@ -7,10 +7,12 @@ Rows in `scenario.sensors.measurements` order, SI units:
 - u, w, theta, q  y = state + f + v.
 - airspeed  the pitot: |air-relative velocity| + f + v (the truth's `air_data`);
 - ax, az    the accelerometer: body-axis specific force (forward, down; m/s^2) + f + v.
-v is zero-mean white Gaussian noise with the scenario's true sigma; f the sensor faults that
-target the row. Realism (off in the thesis scenarios, docs/real-world.md): a GNSS fix only every
-1/gnss_rate_hz s (the row is missing in between), reporting the altitude of gnss_latency_s before
-(whole frames); a barometer bias random walk; a q-gyro bias (constant per run plus a random walk).
+v is zero-mean white Gaussian noise with the scenario's true sigma; f the bias sensor faults that
+target the row. Typed sensor faults (stuck, noisy, blocked: `sim_bridge.fault_types`) scale the
+row's noise draw or replace its reading. Realism (off in the thesis scenarios, docs/real-world.md):
+a GNSS fix only every 1/gnss_rate_hz s (the row is missing in between), reporting the altitude of
+gnss_latency_s before (whole frames); a barometer bias random walk; a q-gyro bias (constant per run
+plus a random walk).
 Noise comes only from the generator handed in (one standard-normal draw of size m per frame, plus
 one per elapsed Gauss-Markov sample and one per active bias walk), so it depends on the seed only.
 """
@@ -20,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from fdir_service.atmosphere import altitude_from_pressure, pressure_from_altitude
+from sim_bridge.fault_types import SensorFaults
 from sim_bridge.scenario import Scenario
 
 # Gauss-Markov GNSS error, down axis (thesis Table B.2): driving-noise sigma, 1/k, sample time.
@@ -47,11 +50,12 @@ class SensorSuite:
             if n in _STATE_ROW:
                 self.H[r, _STATE_ROW[n]] = -1.0 if n in ("gnss_alt", "baro_alt") else 1.0
         self.air_rows = [(r, AIR_ROWS.index(n)) for r, n in enumerate(self.names) if n in AIR_ROWS]
-        # Fault routing: y += S f, S (m, nf) with a 1 where sensor fault j targets row i.
+        # Fault routing: y += S f, S (m, nf) with a 1 where bias sensor fault j targets row i.
         self.S = np.zeros((m, len(scenario.faults)))
         for j, ch in enumerate(scenario.faults):
-            if ch.kind == "sensor":
+            if ch.kind == "sensor" and ch.fault_type == "bias":
                 self.S[self.names.index(ch.target), j] = 1.0
+        self.typed = SensorFaults(scenario.faults, self.names)
         self.baro_row = self.names.index("baro_alt") if "baro_alt" in self.names else None
         self.gnss_row = self.names.index("gnss_alt") if "gnss_alt" in self.names else None
         self.q_row = self.names.index("q") if "q" in self.names else None
@@ -66,6 +70,8 @@ class SensorSuite:
         self._gm_samples = 0
         self.last_static_pressure_pa = float("nan")
         self.last_mask = np.ones(len(self.names), dtype=bool)
+        self.last_fault_truth = np.full(len(self.scenario.faults), np.nan)
+        self.typed.reset()
         self.baro_bias_m = 0.0
         cfg = self.config
         self.gyro_bias = cfg.gyro_bias_sigma * self.rng.standard_normal() if cfg.gyro_bias_sigma else 0.0
@@ -80,29 +86,46 @@ class SensorSuite:
             self.gnss_error_m = decay * self.gnss_error_m + GM_SIGMA_M * self.rng.standard_normal()
             self._gm_samples += 1
 
-    def measure(self, z_true: np.ndarray, t: float, fault_values: np.ndarray, air=None) -> np.ndarray:
-        """y (m,) at time t (s) for the true state z_true (5,) and fault values (nf,), SI; air: the
-        truth's `AirData` (needed only for airspeed / ax / az rows).
+    def measure(self, z_true: np.ndarray, t: float, fault_values: np.ndarray, air=None,
+                active: np.ndarray | None = None) -> np.ndarray:
+        """y (m,) at time t (s) for the true state z_true (5,) and fault profile values (nf,), SI;
+        air: the truth's `AirData` (needed only for airspeed / ax / az rows); active (nf,) bool:
+        each fault's activity (`fault_types.activity`; None: value != 0, enough for bias faults).
 
         Also sets `last_static_pressure_pa` (Pa): the barometer's pressure if the scenario has
-        one, else the noise-free static pressure of the true altitude; and `last_mask` (m,): the
-        rows measured this frame (False: no GNSS fix this frame).
+        one, else the noise-free static pressure of the true altitude; `last_mask` (m,): the
+        rows measured this frame (False: no GNSS fix this frame); and `last_fault_truth` (nf,):
+        the typed sensor faults' additive-equivalent truth (NaN for the other channels).
         """
         z_true = np.asarray(z_true, dtype=float)
+        fault_values = np.asarray(fault_values, dtype=float)
         noise = self.sigma * self.rng.standard_normal(self.sigma.size)
-        y = self.H @ z_true + self.S @ np.asarray(fault_values, dtype=float) + noise
+        if self.typed.typed:
+            active = fault_values != 0.0 if active is None else active
+            self.typed.scale_noise(noise, fault_values, active)
+        y = self.H @ z_true + self.S @ fault_values + noise
         for r, i in self.air_rows:
             y[r] += air.airspeed_mps if i == 0 else air.specific_force[i - 1]
         if self.gauss_markov:
             self._advance_gauss_markov(t)
             y[self.gnss_row] += self.gnss_error_m
         self._realism(y, z_true, t)
+        if self.typed.typed:
+            self.last_fault_truth = self.typed.apply(y, self.clean(z_true, air), noise, fault_values,
+                                                     active, -float(z_true[0]))
         if self.baro_row is not None:
             p = pressure_from_altitude(float(y[self.baro_row]))
             self.last_static_pressure_pa = p
             y[self.baro_row] = altitude_from_pressure(p)
         else:
             self.last_static_pressure_pa = pressure_from_altitude(-float(z_true[0]))
+        return y
+
+    def clean(self, z_true: np.ndarray, air=None) -> np.ndarray:
+        """(m,) the noise-free, fault-free reading of every row: H z_true, air data on air rows."""
+        y = self.H @ np.asarray(z_true, dtype=float)
+        for r, i in self.air_rows:
+            y[r] += air.airspeed_mps if i == 0 else air.specific_force[i - 1]
         return y
 
     def _realism(self, y: np.ndarray, z_true: np.ndarray, t: float) -> None:

@@ -39,7 +39,12 @@ def generate(scenario: Scenario, rng: np.random.Generator, steps: int | None = N
     """One open-loop run of `scenario` (truth at trim, the scenario's faults).
 
     u (steps, 2): the commanded input of each frame (default: the trim input throughout).
+    Bias faults only: typed faults (`sim_bridge.fault_types`) are flown by `sim_bridge.simulate`.
     """
+    typed = [f.id for f in scenario.faults if f.fault_type != "bias"]
+    if typed:
+        raise ValueError(f"{scenario.id}: open-loop synthetic data knows bias faults only, not {typed}; "
+                         "fly typed faults with sim_bridge.simulate")
     p = load_airframe()
     lm = linear_model(p, scenario.truth.linear_matrices, scenario.truth.airspeed_mps,
                       scenario.truth.altitude_m, scenario.dt_s)

@@ -3,8 +3,9 @@
 Linear truth: the discrete model dz_{k+1} = F dz_k + B du_k about trim, with the thesis's printed
 or the derived F, B (`scenario.truth.linear_matrices`). Nonlinear truth: one classical RK4 step of
 `fdir_service.airframe.derivatives` per frame, input held over the frame (zero-order hold).
-Both start at the trim of `scenario.truth` (airspeed, altitude, level flight). Actuator faults add
-to the commanded input: u_applied = u_cmd + f_a (elevator in rad, throttle as a fraction).
+Both start at the trim of `scenario.truth` (airspeed, altitude, level flight). Actuator faults act
+on the commanded input (`fault_types.ActuatorFaults`): a bias adds, u_applied = u_cmd + f_a
+(elevator in rad, throttle as a fraction); a jam holds the input, a loss of effectiveness scales it.
 
 Speed: the nonlinear truth steps with `rk4_step_scalar` (Python floats; equal to `rk4_step` to
 ~1e-15), and the trim / linear model of a (airframe, trim point, dt) is solved once per process.
@@ -33,7 +34,8 @@ import numpy as np
 from fdir_service.airframe import AirframeParams, trim
 from fdir_service.airframe.dynamics import derivatives_scalar, rk4_step_scalar
 from fdir_service.airframe.linearize import linear_model
-from sim_bridge.scenario import ACTUATORS, Scenario
+from sim_bridge.fault_types import ActuatorFaults
+from sim_bridge.scenario import Scenario
 from sim_bridge.turbulence import Dryden
 from sim_bridge.wind import ned_to_body, wind_ned
 from sim_bridge.world_config import DispersionConfig
@@ -70,8 +72,10 @@ class TruthEngine(Protocol):
 
     def reset(self) -> None: ...
 
-    def step(self, u_cmd: np.ndarray, fault_values: np.ndarray) -> np.ndarray:
-        """Advance one frame with u_cmd (2,) plus the actuator faults (nf,) held; the new z."""
+    def step(self, u_cmd: np.ndarray, fault_values: np.ndarray,
+             active: np.ndarray | None = None) -> np.ndarray:
+        """Advance one frame with u_cmd (2,) and the actuator faults' profile values (nf,) and
+        activity (nf,) bool (None: value != 0) held; the new z."""
         ...
 
     def air_data(self) -> AirData:
@@ -161,19 +165,14 @@ class Truth:
         else:
             self.model = None
             self.trim = _cached(_trim, params, tc.airspeed_mps, tc.altitude_m)
-        # Actuator-fault routing: u += A f, A (2, nf).
-        self.A = np.zeros((2, len(scenario.faults)))
-        self._act: list[tuple[int, int]] = []       # (input index, fault index) of actuator faults
-        for j, ch in enumerate(scenario.faults):
-            if ch.kind == "actuator":
-                self.A[ACTUATORS.index(ch.target), j] = 1.0
-                self._act.append((ACTUATORS.index(ch.target), j))
+        self.actuator_faults = ActuatorFaults(scenario.faults)
         self.reset()
 
     def reset(self) -> None:
         """Back to trim (and the wind's clock to 0; the turbulence restarts from its stream)."""
         self.z = self.trim.z.copy()
         self.u_applied = self.trim.u.copy()
+        self.actuator_faults.reset()
         self.t = 0.0
         sky, tc = self.scenario.sky, self.scenario.truth
         self.dryden = (Dryden(sky.turbulence.wind_6m_mps, tc.altitude_m, tc.airspeed_mps, self.params.b,
@@ -185,12 +184,11 @@ class Truth:
             self._air()                  # start in trim with the air: the ground velocity carries the wind
             self.z[1:3] += ned_to_body(self.wind[0], self.wind[1], float(self.z[3])) + self.gust[:2]
 
-    def applied_input(self, u_cmd: np.ndarray, fault_values: np.ndarray) -> np.ndarray:
-        """The input the airframe feels: u_cmd (2,) plus the actuator faults (SI)."""
-        u = np.array(u_cmd, dtype=float)
-        for i, j in self._act:
-            u[i] += fault_values[j]
-        return u
+    def applied_input(self, u_cmd: np.ndarray, fault_values: np.ndarray,
+                      active: np.ndarray | None = None) -> np.ndarray:
+        """The input (2,) the airframe feels: u_cmd (2,) with the actuator faults (profile values
+        (nf,) SI, activity (nf,) bool or None: value != 0), `fault_types.ActuatorFaults.applied`."""
+        return self.actuator_faults.applied(u_cmd, fault_values, active, self.u_applied)
 
     def _air(self) -> None:
         """The wind (NED) and the gust held over the frame starting now (at self.t)."""
@@ -199,9 +197,12 @@ class Truth:
         if self.dryden is not None:
             self.gust = self.dryden.step()
 
-    def step(self, u_cmd: np.ndarray, fault_values: np.ndarray) -> np.ndarray:
-        """Advance one frame with u_cmd (2,) and the fault values (nf,) held; returns the new z."""
-        u = self.applied_input(u_cmd, fault_values)
+    def step(self, u_cmd: np.ndarray, fault_values: np.ndarray,
+             active: np.ndarray | None = None) -> np.ndarray:
+        """Advance one frame with u_cmd (2,) and the faults' profile values (nf,) and activity
+        (nf,) bool (None: value != 0) held; returns the new z."""
+        u = self.applied_input(u_cmd, fault_values, active)
+        self.actuator_faults.commit(fault_values, active, self.u_applied)
         if self.model is not None:
             self.z = self.model.step(self.z, u)
         elif self.scenario.sky.moving_air:

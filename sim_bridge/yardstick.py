@@ -116,13 +116,15 @@ def _window(t: np.ndarray, s: int, e: int) -> slice:
 
 
 def run_yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_faults: np.ndarray,
-                  world_ids: list[str], rule: Hysteresis) -> dict:
+                  world_ids: list[str], rule: Hysteresis, world_active: np.ndarray | None = None) -> dict:
     """One run: prob (K, nf) P(fault) of the monitored faults fault_ids; world_faults (K, nw) the
-    world's injected faults (0 where inactive). Returns counts to pool over runs (see `pool`)."""
+    world's injected faults (0 where inactive); world_active (K, nw) bool their activity (None:
+    value != 0; a typed fault can be active at value 0, `fault_types`). Returns counts to pool
+    over runs (see `pool`)."""
     dec = np.stack([declared(t, prob[:, j], rule) for j in range(prob.shape[1])], axis=1) \
         if prob.shape[1] else np.zeros((t.size, 0), bool)
-    world_active = (np.nan_to_num(world_faults) != 0.0).any(axis=1) if world_faults.size else \
-        np.zeros(t.size, bool)
+    each = (np.nan_to_num(world_faults) != 0.0) if world_active is None else np.asarray(world_active, bool)
+    world_active = each.any(axis=1) if world_faults.size else np.zeros(t.size, bool)
     quiet = quiet_mask(t, world_active)
     false_dec = dec & quiet[:, None]
     false_alarms = sum(int(_onsets(false_dec[:, j]).size) for j in range(dec.shape[1]))
@@ -130,7 +132,7 @@ def run_yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_f
     out = {"false_alarms": false_alarms, "fault_free_s": float(quiet.sum() * dt),
            "false_declared_s": float(false_dec.any(axis=1).sum() * dt), "episodes": []}
     for w, wid in enumerate(world_ids):
-        for s, e in episodes(np.nan_to_num(world_faults[:, w]) != 0.0):
+        for s, e in episodes(each[:, w]):
             out["episodes"].append(_episode(t, dec, fault_ids, wid, s, e))
     return out
 
@@ -184,14 +186,17 @@ def pool(runs: list[dict], world_ids: list[str]) -> dict:
 
 def yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_faults: np.ndarray,
               world_ids: list[str], rule: Hysteresis | None = None,
-              thresholds: tuple[float, ...] = ROC_THRESHOLDS) -> dict:
-    """The yardstick of one filter over R runs: prob (R, K, nf), world_faults (R, K, nw); a run with
-    NaN everywhere (failed) is left out. Adds the ROC over the declare threshold."""
+              thresholds: tuple[float, ...] = ROC_THRESHOLDS,
+              world_active: np.ndarray | None = None) -> dict:
+    """The yardstick of one filter over R runs: prob (R, K, nf), world_faults (R, K, nw), their
+    activity world_active (R, K, nw) bool or None (value != 0); a run with NaN everywhere (failed)
+    is left out. Adds the ROC over the declare threshold."""
     rule = rule or Hysteresis.of_service()
     ok = [r for r in range(prob.shape[0]) if np.isfinite(prob[r]).any()]
 
     def at(rl: Hysteresis) -> dict:
-        return pool([run_yardstick(t, prob[r], fault_ids, world_faults[r], world_ids, rl) for r in ok],
+        return pool([run_yardstick(t, prob[r], fault_ids, world_faults[r], world_ids, rl,
+                                   None if world_active is None else world_active[r]) for r in ok],
                     world_ids)
 
     out = at(rule)

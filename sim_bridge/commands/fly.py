@@ -254,7 +254,7 @@ class _Flight:
         self._send(self.link.actuator_messages(fr.t, u))
         self.u_hist.append(np.asarray(u, dtype=float).copy())
         if self.truth is not None:
-            self.truth.write(fr.t, fr.z_true, fr.faults, u)
+            self.truth.write(fr.t, fr.z_true, self.stepper.fault_truth(u), u, active=fr.active)
         self.max_alt_err = max(self.max_alt_err, abs(-fr.z_true[0] - self.ap.altitude_command(fr.t)))
         self.stepper.advance(u)
 
