@@ -25,8 +25,8 @@ actuators (`ActuatorFaults`, used by `world.Truth` and `jsbsim_truth.JSBSimTruth
 
 Truth (`Frame.faults`, `Trajectory.faults`, `/sim/truth`): per channel the additive-equivalent
 value that the estimator's fault entry estimates, 0 while inactive: bias a; stuck and blocked the
-noise-free reading minus the true noise-free reading; jammed the applied minus the commanded input;
-noisy k - 1; effectiveness g - 1.
+noise-free reading minus the true noise-free reading; jammed and effectiveness the applied minus the
+commanded input (for effectiveness (g - 1) u_cmd); noisy k - 1.
 
 Activity (`activity`): a bias channel is active where its value is non-zero (as before: a ramp's
 first frame, 0, is fault-free); a typed channel wherever its profile is active, whatever its value
@@ -180,7 +180,7 @@ class ActuatorFaults:
     def truth(self, u_cmd: np.ndarray, values: np.ndarray, active: np.ndarray,
               u_prev: np.ndarray) -> np.ndarray:
         """(nf,) the additive-equivalent truth of the typed actuator channels (NaN elsewhere):
-        jammed applied - commanded, effectiveness g - 1; 0 while inactive."""
+        jammed and effectiveness applied - commanded ((g - 1) u_cmd); 0 while inactive."""
         out = np.full(self.nf, np.nan)
         for i, j, kind in self.channels:
             if kind == "bias":
@@ -190,5 +190,5 @@ class ActuatorFaults:
             elif kind == "jammed":
                 out[j] = self._jam(i, j, u_prev) + float(values[j]) - float(u_cmd[i])
             else:
-                out[j] = min(max(float(values[j]), 0.0), 1.0) - 1.0
+                out[j] = (min(max(float(values[j]), 0.0), 1.0) - 1.0) * float(u_cmd[i])
         return out

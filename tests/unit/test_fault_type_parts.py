@@ -122,7 +122,8 @@ def test_a_new_noisy_fault_is_drawn_from_its_prior_of_k():
     sent[2, :500] = True
     part.weigh(X, frame(np.zeros(3)), sent, np.random.default_rng(0))
     k1 = X[N_AIRFRAME + 2]
-    assert 1.0 <= k1[:500].min() and k1[:500].max() <= 9.0 and abs(k1[:500].mean() - 5.0) < 0.3
+    k = 1.0 + k1[:500]                                  # log-uniform on [2, 10]: P(k < 4) = ln 2 / ln 5
+    assert 2.0 <= k.min() and k.max() <= 10.0 and abs((k < 4.0).mean() - np.log(2) / np.log(5)) < 0.05
     assert not k1[500:].any()
 
 

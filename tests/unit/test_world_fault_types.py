@@ -207,7 +207,7 @@ def test_effectiveness_scales_the_command():
     on = _frames(t)
     np.testing.assert_allclose(ua[on, 1], 0.6 * uc[on, 1], rtol=1e-15)
     np.testing.assert_array_equal(ua[~on, 1], uc[~on, 1])
-    np.testing.assert_allclose(f[on, 0], -0.4, rtol=1e-15)
+    np.testing.assert_allclose(f[on, 0], ua[on, 1] - uc[on, 1], rtol=1e-12)   # (g - 1) u_cmd
     assert np.all(f[~on, 0] == 0.0)
 
 
