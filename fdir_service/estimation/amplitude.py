@@ -64,21 +64,36 @@ class AmplitudePredictor:
             if r >= 0 and mask[r]:
                 avail[j] = True
                 sigma[j] = NOISY_SIGMA
-        act = np.flatnonzero(lay.actuator_input >= 0)
-        if act.size and rows.size:
-            Hz = self.meas.H[rows, :N_AIRFRAME]
-            M = Hz @ self.B_actuator[:, act]                  # (m_rows, na)
-            Sa = Hz @ self.Qz @ Hz.T + np.diag(self.meas.sigma[rows] ** 2)
-            SiM = np.linalg.solve(Sa, M)
-            info = M.T @ SiM                                  # (na, na) Fisher information
-            if np.linalg.matrix_rank(info) == act.size:
-                cov = np.linalg.inv(info)
-                G[act] = cov @ SiM.T
-                avail[act] = True
-                sigma[act] = np.sqrt(np.diag(cov))
+        if rows.size:
+            self._actuator_gain(rows, G, avail, sigma)
         out = (G, avail, sigma)
         self._cache[key] = out
         return out
+
+    def _actuator_gain(self, rows: np.ndarray, G: np.ndarray, avail: np.ndarray, sigma: np.ndarray) -> None:
+        """Fill the actuator faults' rows of G, avail and sigma (in place) for the frame's rows: one
+        generalised least-squares fit per input, shared by every fault entry on that input (its
+        types differ in how the entry evolves, not in what one frame says of it)."""
+        lay = self.layout
+        act = np.flatnonzero(lay.actuator_input >= 0)
+        if not act.size:
+            return
+        inputs, first = np.unique(lay.actuator_input[act], return_index=True)
+        cols = act[first]                                  # one fault entry per input
+        Hz = self.meas.H[rows, :N_AIRFRAME]
+        M = Hz @ self.B_actuator[:, cols]                  # (m_rows, n_inputs)
+        Sa = Hz @ self.Qz @ Hz.T + np.diag(self.meas.sigma[rows] ** 2)
+        SiM = np.linalg.solve(Sa, M)
+        info = M.T @ SiM                                   # (n_inputs, n_inputs) Fisher information
+        if np.linalg.matrix_rank(info) < cols.size:
+            return
+        cov = np.linalg.inv(info)
+        per_input = cov @ SiM.T
+        for j in act.tolist():
+            i = int(np.searchsorted(inputs, lay.actuator_input[j]))
+            G[j] = per_input[i]
+            avail[j] = True
+            sigma[j] = np.sqrt(cov[i, i])
 
     def observe(self, frame) -> None:
         """Learn from the frame before `predict` (nothing here; `rate_window.RateWindowAmplitude`

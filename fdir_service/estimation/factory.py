@@ -237,8 +237,7 @@ def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, me
     faint = estimator.settings.pi10_faint
     exit_ = FaintExit(amp.sigma, faint) if faint > 0 else None
     pairs = sibling_pairs(layout)
-    switch = TypeSwitch(pairs, estimator.settings.pi_switch) \
-        if pairs.size and estimator.settings.pi_switch > 0 else None
+    switch = TypeSwitch(pairs, estimator.settings.pi_switch) if pairs.size else None
     jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry, fold, exit_,
                       exit_to_drift=estimator.settings.mode0 == "drift", switch=switch)
     return jump, _sentinel_weighting(estimator, layout, meas, amp, carry)
@@ -273,8 +272,8 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     evolution = TypedEvolution(layout, meas.H)
     parts.predict = TypedPredict(parts.predict, evolution, layout, meas.H)
     noisy = evolution.noisy
-    rows = layout.noisy_row[noisy]
-    parts.correction = TypedCorrection(parts.correction, evolution, rows, meas.sigma[rows])
+    rows = np.maximum(layout.sensor_row, layout.noisy_row)
+    parts.correction = TypedCorrection(parts.correction, evolution, rows, meas.sigma)
     if noisy.size:
         high = np.array([estimator.faults[j].amplitude_max or 9.0 for j in noisy.tolist()])
         parts.sentinel_weighting = NoisySentinels(parts.sentinel_weighting, noisy,

@@ -13,7 +13,8 @@ two frames (`TypedEvolution`):
 
 So a stuck sensor is told from a biased one when its state moves, a jammed surface from an offset
 one when its command moves. A noisy sensor's entry is k - 1 >= 0, k the multiplier of its row's
-noise: it leaves the row's prediction alone and scales its likelihood (`TypedCorrection`); a new one
+noise: it leaves the row's prediction alone and scales its likelihood (`TypedCorrection`, which
+also weighs a stuck row by its own, state-free predictive); a new one
 is drawn from its prior k - 1 ~ U(1, amplitude_max) (`NoisySentinels`). The parts wrap the predict,
 correction and sentinel slots of a recipe (factory.py), so a filter without typed faults is unchanged.
 """
@@ -127,31 +128,33 @@ class TypedPredict:
 class TypedCorrection:
     """A correction part that respects the typed entries:
     - a stuck sensor's held reading c = h_r z + f is not corrected: its entry anti-tracks the
-      correction's move of the state (f -= h_r dz), or the held value would follow the readings
-      and a stuck hypothesis, free of its row, would fit any flight better than a working sensor;
-    - a noisy row's entry is not in H, so not corrected either, and a mode-1 particle whose row r
-      has noise k sigma_r is weighted by N(e; 0, v1) / N(e; 0, v0) more, e = y_r - h_r x its
-      innovation, v0 = sigma_r^2 + the cloud's predicted spread of the row, v1 = v0 + (k^2 - 1)
-      sigma_r^2.
+      correction's move of the state (f -= h_r dz), or the held value would follow the readings;
+    - a noisy row's entry is not in H, so it is not corrected either;
+    - the row of a mode-1 stuck or noisy entry is weighed by its own predictive, not the cloud's:
+      the particle's weight gains log N(e; 0, v1) - log N(e; 0, v0), e = y_r - h_r x its innovation,
+      v0 = sigma_r^2 + the cloud's predicted spread of the row (what the correction assumed), v1 =
+      sigma_r^2 for a stuck row (the held reading does not depend on the state: a gyro that follows
+      turbulence is no stuck gyro, however wide the cloud's pitch rate) and v0 + (k^2 - 1)
+      sigma_r^2 for a noisy one.
 
-    evolution: the `TypedEvolution` (stuck rows); rows (k,): the noisy entries' measurement rows;
-    sigma (k,): those rows' sigma.
+    evolution: the `TypedEvolution`; rows (nf,): each entry's measurement row (-1: no row);
+    sigma (m,): the rows' noise.
     """
 
     def __init__(self, inner, evolution: TypedEvolution, rows: np.ndarray, sigma: np.ndarray) -> None:
         self.inner = inner
         self.evolution = evolution
-        self.faults = evolution.noisy
-        self.rows = np.asarray(rows, dtype=int)
-        self.sigma = np.asarray(sigma, dtype=float)
-        self.held = np.concatenate([evolution.stuck, evolution.noisy])
+        self.faults = np.concatenate([evolution.stuck, evolution.noisy])
+        self.noisy = np.r_[np.zeros(evolution.stuck.size, bool), np.ones(evolution.noisy.size, bool)]
+        self.rows = np.asarray(rows, dtype=int)[self.faults]
+        self.sigma = np.asarray(sigma, dtype=float)[self.rows] if self.faults.size else np.zeros(0)
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         extra = self._extra_loglik(X, w, modes, frame) if self.faults.size else None
-        held = X[N_AIRFRAME + self.held].copy()
+        held = X[N_AIRFRAME + self.faults].copy()
         z = X[:N_AIRFRAME].copy() if self.evolution.needs_state else None
         ll = self.inner.update(X, w, modes, frame)
-        X[N_AIRFRAME + self.held] = held
+        X[N_AIRFRAME + self.faults] = held
         if z is not None:
             ev = self.evolution
             X[N_AIRFRAME + ev.stuck] -= (ev.stuck_h @ (X[:N_AIRFRAME] - z)) * modes[ev.stuck]
@@ -159,19 +162,21 @@ class TypedCorrection:
 
     def _extra_loglik(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray,
                       frame: Frame) -> np.ndarray | None:
-        """(N,) log N(e; 0, v1) - log N(e; 0, v0) summed over the noisy rows that arrived."""
+        """(N,) log N(e; 0, v1) - log N(e; 0, v0) summed over the typed rows that arrived."""
         present = frame.mask[self.rows]
         if not present.any():
             return None
         reduced = np.cumsum(frame.mask) - 1                     # full row -> row of the frame
         ri = reduced[self.rows[present]]
+        js = self.faults[present]
         pred = frame.mm.H[ri] @ X                               # (k, N)
         e = frame.yv[ri, None] - pred
         spread = (pred - (pred @ w)[:, None]) ** 2 @ w          # (k,)
-        s2 = self.sigma[present] ** 2
-        v0 = (s2 + spread)[:, None]
-        k = 1.0 + np.maximum(X[N_AIRFRAME + self.faults[present]], 0.0) * modes[self.faults[present]]
-        v1 = v0 + (k * k - 1.0) * s2[:, None]
+        s2 = (self.sigma[present] ** 2)[:, None]
+        v0 = s2 + spread[:, None]
+        k = 1.0 + np.maximum(X[N_AIRFRAME + js], 0.0)
+        v1 = np.where(self.noisy[present, None], v0 + (k * k - 1.0) * s2, s2)
+        v1 = np.where(modes[js], v1, v0)
         return (-0.5 * e * e * (1.0 / v1 - 1.0 / v0) - 0.5 * np.log(v1 / v0)).sum(axis=0)
 
 
@@ -192,6 +197,9 @@ class TypeSwitch:
     this frame is unchanged; only the next frames tell a stuck sensor from a biased one. Without
     it, the type that took the fault first keeps it until sentinels of the other happen to win.
 
+    One type per item at a time (`open`): the additive types of an item add the same offset, so a
+    particle with two of them in mode 1 could split one fault between them in any proportion.
+
     pairs (p, 2): `sibling_pairs`; rate: the hand-over probability per step and pair.
     """
 
@@ -199,11 +207,19 @@ class TypeSwitch:
         self.pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
         self.rate = float(rate)
 
+    def open(self, available: np.ndarray, modes: np.ndarray) -> np.ndarray:
+        """(nf, N) where each fault may enter mode 1 this step: available (nf,) and no other type of
+        its item in mode 1 (modes (nf, N))."""
+        may = np.broadcast_to(available[:, None], modes.shape).copy()
+        for a, b in self.pairs.tolist():
+            may[b] &= ~modes[a]
+        return may
+
     def apply(self, F: np.ndarray, modes: np.ndarray, reset_to: np.ndarray | None,
               rng: np.random.Generator) -> None:
         """Hand over in place: F (nf, N) fault entries, modes (nf, N); reset_to (nf,) the fault-free
         values (None: 0)."""
-        if not self.pairs.size:
+        if not self.pairs.size or self.rate <= 0.0:
             return
         v = rng.random((len(self.pairs), F.shape[1]))
         for (a, b), vv in zip(self.pairs.tolist(), v, strict=True):

@@ -74,14 +74,15 @@ def jump(F: np.ndarray, modes: np.ndarray, amplitude: np.ndarray, available: np.
 
     amplitude (nf, N): predicted fault amplitude per particle (A_f, eq. 4.14/4.16); available (nf,)
     bool: False where no amplitude could be predicted this frame (its measurement rows did not
-    arrive), then no particle enters mode 1 for that fault; pi01 (nf,), pi10 (nf,) or per particle
-    (nf, N) (`FaintExit`); v (nf, N) ~ U(0, 1); reset_to (nf,): what an exit's fault entry becomes
-    when not forced_zero (None: 0).
+    arrive), then no particle enters mode 1 for that fault (or (nf, N) per particle: a particle
+    whose item has another type in mode 1 cannot enter, `fault_types.TypeSwitch.open`); pi01 (nf,),
+    pi10 (nf,) or per particle (nf, N) (`FaintExit`); v (nf, N) ~ U(0, 1); reset_to (nf,): what an
+    exit's fault entry becomes when not forced_zero (None: 0).
     Returns the sentinels (nf, N) bool: the particles that jumped 0 -> 1 this step.
     """
     up = v < pi01[:, None]
     up &= ~modes
-    up &= available[:, None]
+    up &= available[:, None] if available.ndim == 1 else available
     down = v < (pi10[:, None] if pi10.ndim == 1 else pi10)
     down &= modes
     np.copyto(F, amplitude, where=up)
@@ -311,7 +312,8 @@ class MarkovJump:
         reset_to = self.drift.update(F, modes, w) if self.drift is not None else None
         pi10 = self.exit.pi10(F, self.transition.pi10, reset_to)
         folded = self.fold.capture(F, modes, v, pi10, reset_to)
-        self.sentinels = jump(F, modes, A, avail, self.transition.pi01, pi10, v, self.forced_zero,
+        may = avail if self.switch is None else self.switch.open(avail, modes)
+        self.sentinels = jump(F, modes, A, may, self.transition.pi01, pi10, v, self.forced_zero,
                               reset_to)
         self.carry.apply(X, F, carried)
         self.fold.apply(X, folded)

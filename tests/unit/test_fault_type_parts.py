@@ -85,7 +85,7 @@ def frame(y: np.ndarray) -> Frame:
 
 def test_a_noisy_mode_1_particle_wins_on_a_wild_reading_and_loses_on_a_quiet_one():
     ev = TypedEvolution(LAYOUT, MEAS.H)
-    corr = TypedCorrection(Likelihood(), ev, np.array([0]), SIGMA[:1])
+    corr = TypedCorrection(Likelihood(), ev, np.maximum(LAYOUT.sensor_row, LAYOUT.noisy_row), SIGMA)
     X = cloud(2)
     X[N_AIRFRAME + 2] = [0.0, 3.0]                      # k = 1 and k = 4
     modes = np.zeros((LAYOUT.nf, 2), dtype=bool)
@@ -105,7 +105,7 @@ def test_the_correction_holds_a_stuck_reading_and_a_noisy_entry():
             return np.zeros(X.shape[1])
 
     ev = TypedEvolution(LAYOUT, MEAS.H)
-    corr = TypedCorrection(MoveEverything(), ev, np.array([0]), SIGMA[:1])
+    corr = TypedCorrection(MoveEverything(), ev, np.maximum(LAYOUT.sensor_row, LAYOUT.noisy_row), SIGMA)
     X = cloud(2)
     X[N_AIRFRAME + 2] = 2.0
     modes = np.ones((LAYOUT.nf, 2), dtype=bool)

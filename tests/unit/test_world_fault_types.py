@@ -217,10 +217,10 @@ def test_engine_loss_applies_zero_throttle_and_is_an_active_fault():
     on = _frames(t)
     assert np.all(ua[on, 1] == 0.0) and np.all(uc[on, 1] > 0.0)
     np.testing.assert_array_equal(act[:, 0], on)
-    assert np.all(f[on, 0] == -1.0)
+    np.testing.assert_array_equal(f[on, 0], -uc[on, 1])          # (g - 1) u_cmd with g = 0
     tr = run(sc, 0, seconds=10.0)
     np.testing.assert_array_equal(tr.active[:, 0], on)
-    assert np.all(tr.faults[on, 0] == -1.0)
+    np.testing.assert_array_equal(tr.faults[on, 0], -tr.u[on, 1])
     va = np.hypot(tr.z[:, 1], tr.z[:, 2])
     assert va[on][-1] < va[0] - 1.0 or -tr.z[on, 0][-1] < 499.0   # it sinks or slows without thrust
 
