@@ -22,6 +22,7 @@ from fdir_service.replay import item_summary, replay
 from fdir_service.runtime.events import FaultDeclared
 from fdir_service.service_config import ServiceConfig, default_config_path
 from tests.helpers.service import autopilot_stream
+from tests.helpers.streams import Events
 
 HELD = math.radians(3.2)   # the stuck gyro's held reading, rad/s
 ONSET_S = 2.0
@@ -73,23 +74,6 @@ def factory(report_types: bool = True):
     return make
 
 
-class Typed:
-    """Events and estimate records of a run."""
-
-    def __init__(self) -> None:
-        self.events: list = []
-
-    def on_metadata(self, name, data): pass
-    def on_raw(self, direction, data, t_ns): pass
-    def on_message(self, msg, t_ns): pass
-    def on_estimate(self, frame_time_s, out, latency_s, t_ns): pass
-    def on_event(self, level, text, t_ns): pass
-    def on_particles(self, frame_time_s, states, weights, t_ns): pass
-
-    def on_runtime_event(self, event, t_ns):
-        self.events.append(event)
-
-
 def fly(observers, report_types: bool = True, seconds: float = 4.0) -> bytes:
     pipe = Pipeline(typed_config(), filter_factory=factory(report_types), observers=observers)
     sent = bytearray()
@@ -112,7 +96,7 @@ def old_dialect(tmp_path):
 
 @pytest.mark.parametrize("report_types", [True, False])
 def test_a_stuck_gyro_is_published_typed(report_types):
-    ev = Typed()
+    ev = Events()
     sent = fly([ev], report_types)
     msgs = new_mavlink(255, 0).parse_buffer(sent)
     est = [m for m in msgs if m.get_type() == "FDIR_ESTIMATE"]
@@ -130,7 +114,7 @@ def test_a_stuck_gyro_is_published_typed(report_types):
     text = [m.text for m in msgs if m.get_type() == "STATUSTEXT" and m.text.startswith("FDIR q")]
     value = "3.2" if report_types else "3.1"
     assert text == [f"FDIR q stuck at {value} deg/s p=0.98"]
-    decl = [e for e in ev.events if isinstance(e, FaultDeclared)]
+    decl = ev.of(FaultDeclared)
     assert [(e.fault_id, e.fault_type) for e in decl] == [("q", "stuck")]
 
 
