@@ -211,7 +211,7 @@ class Publisher:
 
     def item_view(self, out: StepOutput) -> ItemFrame:
         """The step's item view (entry types from the step, else from the config)."""
-        return item_frame(self.layout, out, entry_types(self.faults, out) if out.fault_types else self.types)
+        return item_frame(self.layout, out, tuple(out.fault_types) or self.types)
 
     def update_declarations(self, time_us: int, out: StepOutput, view: ItemFrame | None = None
                             ) -> list[Change]:
