@@ -4,7 +4,10 @@ The recorded raw input bytes (`/mavlink/raw/in`, exactly as read from the autopi
 with their recorded log times, into a fresh `fdir_service.pipeline.Pipeline` rebuilt from the
 recorded "config" metadata. With the recorded filter, particle count and seed the estimates are
 bit-identical to the flight's on every `/fdir/estimate` field except the wall-clock `latency_s`;
-with another filter the replay is a comparison (`estimate_differences`). Scoring against a
+with another filter the replay is a comparison (`estimate_differences`). An estimator with typed
+faults or several entries per target also records its monitored items (`/fdir/items`); the replay
+reproduces them (`ReplayResult.items_identity`) and summarises each item's type (`item_summary`).
+A log without items (every older one) replays as before. Scoring against a
 simulator's truth and the report figures belong to the lab: `sim-bridge replay` (sim_bridge/replay_score.py).
 """
 
@@ -24,7 +27,8 @@ import numpy as np
 from fdir_service.estimation.base import StepOutput
 from fdir_service.recording import schemas as S
 from fdir_service.recording.logtools import McapLog
-from fdir_service.recording.recorder import ESTIMATE_TOPIC, RAW_IN_TOPIC, Recorder
+from fdir_service.recording.recorder import ESTIMATE_TOPIC, ITEMS_TOPIC, RAW_IN_TOPIC, Recorder
+from fdir_service.runtime.items import TYPE_NAMES, ItemReport
 
 NON_DETERMINISTIC_FIELDS = ("latency_s",)
 """`/fdir/estimate` fields excluded from the bit-identity check (wall-clock processing time)."""
@@ -70,6 +74,32 @@ def raw_input(log: McapLog) -> list[tuple[int, bytes]]:
 def estimates(log: McapLog) -> list[dict[str, Any]]:
     """The recorded `/fdir/estimate` records, in order."""
     return [obj for _, obj in log.iter_json(ESTIMATE_TOPIC)]
+
+
+def item_records(log: McapLog) -> list[dict[str, Any]]:
+    """The recorded `/fdir/items` records, in order (none in a log of an all-bias estimator)."""
+    return [obj for _, obj in log.iter_json(ITEMS_TOPIC)]
+
+
+def item_names_of(record: dict[str, Any]) -> list[str]:
+    """The item names of one `/fdir/items` record (its `type_<name>` fields)."""
+    return [k[5:] for k in record if k.startswith("type_")]
+
+
+def item_summary(records: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per item of an `/fdir/items` sequence: `type`, its most frequent most probable type over the
+    declared frames (over all frames when never declared); `declared_fraction` of the frames;
+    `p_max`, the highest P(item faulty)."""
+    out: dict[str, dict[str, Any]] = {}
+    for name in item_names_of(records[0]) if records else []:
+        declared = [r for r in records if r.get(f"declared_{name}")]
+        codes = [r[f"type_{name}"] for r in (declared or records)]
+        code = max(set(codes), key=lambda c: (codes.count(c), -c))
+        ps = [r[f"p_{name}"] for r in records if r.get(f"p_{name}") is not None]
+        out[name] = {"type": TYPE_NAMES.get(code, str(code)),
+                     "declared_fraction": len(declared) / len(records),
+                     "p_max": max(ps) if ps else None}
+    return out
 
 
 # ------------------------------------------------------------------------------ comparison
@@ -152,6 +182,7 @@ class _EstimateCollector:
 
     def __init__(self) -> None:
         self.records: list[dict[str, Any]] = []
+        self.items: list[dict[str, Any]] = []
 
     def on_metadata(self, name: str, data: dict[str, str]) -> None:
         pass
@@ -165,6 +196,9 @@ class _EstimateCollector:
     def on_estimate(self, frame_time_s: float, out: StepOutput, latency_s: float, t_ns: int) -> None:
         self.records.append(S.estimate_json(frame_time_s, out, latency_s))
 
+    def on_items(self, frame_time_s: float, report: ItemReport, t_ns: int) -> None:
+        self.items.append(S.items_json(frame_time_s, report))
+
     def on_event(self, level: str, text: str, t_ns: int) -> None:
         pass
 
@@ -175,7 +209,9 @@ class _EstimateCollector:
 @dataclass
 class ReplayResult:
     """What `replay` did. identity: against the recorded estimates (meaningful when same_setup);
-    differences: recorded vs replayed when the setup differs; speed: log duration / wall time."""
+    differences: recorded vs replayed when the setup differs; speed: log duration / wall time;
+    recorded_items / replayed_items: the `/fdir/items` records (empty for an all-bias estimator)
+    and items_identity their comparison."""
 
     log: Path
     filter: str
@@ -191,6 +227,13 @@ class ReplayResult:
     wall_s: float
     differences: dict[str, Any] | None = None
     out_paths: list[Path] = field(default_factory=list)
+    recorded_items: list[dict[str, Any]] = field(default_factory=list)
+    replayed_items: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def items_identity(self) -> Identity:
+        """Bit-identity of the recorded and replayed `/fdir/items` records."""
+        return compare_identity(self.recorded_items, self.replayed_items)
 
     @property
     def speed(self) -> float:
@@ -269,7 +312,8 @@ def replay(log_path: str | os.PathLike[str], *, filter_name: str | None = None, 
         log=log.path, filter=str(f_name), particles=int(n_part or 0), seed=int(s or 0), recorded_setup=setup,
         same_setup=same, recorded=recorded, replayed=replayed, identity=compare_identity(recorded, replayed),
         frames=len(replayed), log_duration_s=duration, wall_s=wall,
-        out_paths=list(recorder.paths) if recorder is not None else [])
+        out_paths=list(recorder.paths) if recorder is not None else [],
+        recorded_items=item_records(log), replayed_items=collector.items)
     if not same:
         result.differences = estimate_differences(recorded, replayed)
     return result
@@ -291,6 +335,9 @@ def summary(result: ReplayResult) -> dict[str, Any]:
         "wall_s": result.wall_s,
         "speed_x_realtime": result.speed,
         "differences": result.differences,
+        "items": {"recorded": item_summary(result.recorded_items),
+                  "replayed": item_summary(result.replayed_items),
+                  "identical": result.items_identity.identical},
         "out": [str(p) for p in result.out_paths],
     }
 

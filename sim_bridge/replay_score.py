@@ -22,7 +22,8 @@ import numpy as np
 
 from fdir_service.recording import schemas as S
 from fdir_service.recording.schemas import finite_or_none
-from fdir_service.replay import ReplayResult, as_arrays, fault_ids_of, replay, summary
+from fdir_service.replay import ReplayResult, as_arrays, fault_ids_of, item_summary, replay, summary
+from fdir_service.runtime.items import TYPE_NAMES
 from sim_bridge.metrics import (
     HOLD_S,
     P_THRESHOLD,
@@ -75,14 +76,20 @@ def align_to_truth(t_est: np.ndarray, t_truth: np.ndarray, tol_s: float) -> tupl
     return order[pick], ok
 
 
+def _entry_type(record: dict[str, Any], fid: str) -> str:
+    """A fault entry's type from an estimate record (`ft_<id>`; "bias" in a record without it)."""
+    return TYPE_NAMES.get(int(record.get(f"ft_{fid}") or 0), "bias")
+
+
 def score(est: Sequence[dict[str, Any]], truth: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """SPEC section 8 metrics of one run against the simulator truth.
 
-    Per fault j: `rmse` = sqrt(time-mean of (f_hat - f)^2) (SI units of the fault), |error| at the
-    thesis's report times, `delay_s` per fault episode (onset -> first step inside the episode with
-    P(fault) > 0.5 held 0.25 s; None if never), `false_alarm_fraction` (fault-free steps with
-    P > 0.5) and `missed_fraction` (faulty steps with P <= 0.5). Per airframe state: RMSE (SI; theta
-    and q also in deg, deg/s). Frames are matched to truth by time (nearest, within half a frame).
+    Per fault j: its `type` (bias, stuck, ...; `ft_<id>`), `rmse` = sqrt(time-mean of (f_hat - f)^2)
+    (SI units of the fault), |error| at the thesis's report times, `delay_s` per fault episode
+    (onset -> first step inside the episode with P(fault) > 0.5 held 0.25 s; None if never),
+    `false_alarm_fraction` (fault-free steps with P > 0.5) and `missed_fraction` (faulty steps
+    with P <= 0.5). Per airframe state: RMSE (SI; theta and q also in deg, deg/s). Frames are
+    matched to truth by time (nearest, within half a frame).
     """
     e = as_arrays(est)
     tr = as_arrays(truth)
@@ -108,6 +115,7 @@ def score(est: Sequence[dict[str, Any]], truth: Sequence[dict[str, Any]]) -> dic
         at = {f"{x:.2f}": finite_or_none(abs(err[int(np.argmin(np.abs(t - x)))])) for x in TABLE_TIMES
               if t.size and t[0] - dt <= x <= t[-1] + dt}
         out["faults"][fid] = {
+            "type": _entry_type(est[0], fid),
             "rmse": finite_or_none(rmse(f_hat, f_true)),
             "abs_error_at": at,
             "episodes": episodes,
@@ -223,12 +231,12 @@ def _fmt(v: Any, spec: str = ".3f") -> str:
 
 def _metrics_markdown(metrics: dict[str, Any]) -> list[str]:
     lines = ["## Fault metrics (SPEC section 8)", "",
-             "| run | fault | RMSE | delay (s) | false-alarm fraction | missed fraction |",
-             "|---|---|---|---|---|---|"]
+             "| run | fault | type | RMSE | delay (s) | false-alarm fraction | missed fraction |",
+             "|---|---|---|---|---|---|---|"]
     for run, m in metrics.items():
         for fid, fm in m["faults"].items():
             delays = ", ".join(_fmt(e["delay_s"], ".2f") for e in fm["episodes"]) or "-"
-            lines.append(f"| {run} | {fid} | {_fmt(fm['rmse'])} | {delays} | "
+            lines.append(f"| {run} | {fid} | {fm.get('type', 'bias')} | {_fmt(fm['rmse'])} | {delays} | "
                          f"{_fmt(fm['false_alarm_fraction'])} | {_fmt(fm['missed_fraction'])} |")
     lines += ["", "## State RMSE", "", "| run | " + " | ".join(S.STATE_NAMES) + " |",
               "|---|" + "---|" * len(S.STATE_NAMES)]
@@ -250,6 +258,17 @@ def _differences_markdown(differences: dict[str, Any]) -> list[str]:
     return lines + [""]
 
 
+def _items_markdown(r: ReplayResult) -> list[str]:
+    """The monitored items' types (estimators with typed faults; nothing otherwise)."""
+    if not r.replayed_items:
+        return []
+    lines = ["## Monitored items", "", "| item | type | declared fraction | max P |", "|---|---|---|---|"]
+    for name, s in item_summary(r.replayed_items).items():
+        lines.append(f"| {name} | {s['type']} | {_fmt(s['declared_fraction'], '.2f')} | "
+                     f"{_fmt(s['p_max'], '.2f')} |")
+    return lines + [""]
+
+
 def report_markdown(scored: ScoredReplay) -> str:
     """A short human-readable replay report."""
     r = scored.result
@@ -267,6 +286,7 @@ def report_markdown(scored: ScoredReplay) -> str:
         lines += _metrics_markdown(scored.metrics)
     if r.differences:
         lines += _differences_markdown(r.differences)
+    lines += _items_markdown(r)
     lines += ["Figures: faults.png (fault estimates and P(fault) vs truth), "
               "states.png (airframe states).", ""]
     return "\n".join(lines)

@@ -8,7 +8,7 @@ import sys
 from mcap.exceptions import McapError
 
 from fdir_service.estimation.recipes import FILTER_NAMES
-from fdir_service.replay import ReplayError, ReplayResult, replay
+from fdir_service.replay import ReplayError, ReplayResult, item_summary, replay
 
 
 def add_replay_arguments(p: argparse.ArgumentParser) -> None:
@@ -49,13 +49,32 @@ def print_replay(r: ReplayResult) -> None:
             d, dp = r.differences.get(f"f_{fid}", {}), r.differences[f"pf_{fid}"]
             print(f"  {fid}: estimate RMS difference {fmt(d.get('rms'))}, P(fault) RMS difference "
                   f"{fmt(dp.get('rms'))}")
+    print_items(r)
     if r.out_paths:
         print("recorded to " + ", ".join(str(p) for p in r.out_paths))
 
 
+def print_items(r: ReplayResult) -> None:
+    """Per monitored item (estimators with typed faults): its type, declared fraction and max P,
+    replayed (and recorded, when the setup differs); nothing for an all-bias estimator."""
+    if not r.replayed_items:
+        return
+    if r.same_setup and r.recorded_items:
+        print(f"items: {r.items_identity.describe()}")
+    recorded = item_summary(r.recorded_items)
+    for name, s in item_summary(r.replayed_items).items():
+        was = recorded.get(name) if not r.same_setup else None
+        tail = f" (recorded: {was['type']}, declared {was['declared_fraction']:.0%})" if was else ""
+        print(f"  {name}: {s['type']}, declared {s['declared_fraction']:.0%} of frames, "
+              f"max P {fmt(s['p_max'], '.2f')}{tail}")
+
+
 def exit_code(r: ReplayResult) -> int:
-    """0, or 3 when the same setup did not reproduce the recorded estimates."""
-    return 0 if (r.identity.identical or r.identity.common_identical or not r.same_setup) else 3
+    """0, or 3 when the same setup did not reproduce the recorded estimates (or items)."""
+    if not r.same_setup:
+        return 0
+    items_ok = not r.recorded_items or r.items_identity.identical or r.items_identity.common_identical
+    return 0 if (r.identity.identical or r.identity.common_identical) and items_ok else 3
 
 
 def _run(args: argparse.Namespace) -> int:

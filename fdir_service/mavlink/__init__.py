@@ -16,6 +16,22 @@ FDIR_ESTIMATE_ID = dialect.MAVLINK_MSG_ID_FDIR_ESTIMATE
 MAX_FAULTS = 8
 """FDIR_ESTIMATE carries at most this many fault channels."""
 MAV_COMP_ID_ONBOARD_COMPUTER = dialect.MAV_COMP_ID_ONBOARD_COMPUTER
+FAULT_TYPE_BYTES = MAX_FAULTS // 2
+"""FDIR_ESTIMATE.fault_type: FDIR_FAULT_TYPE codes packed two per byte (payload limit 255 bytes)."""
+
+
+def pack_fault_types(codes: list[int]) -> list[int]:
+    """FDIR_FAULT_TYPE codes (<= 8, each 0..15) -> FDIR_ESTIMATE.fault_type (4 bytes): channel i in
+    the low nibble of byte i // 2 when i is even, the high nibble when odd; missing channels 0."""
+    c = list(codes) + [0] * (MAX_FAULTS - len(codes))
+    return [(c[2 * b] & 0xF) | (c[2 * b + 1] & 0xF) << 4 for b in range(FAULT_TYPE_BYTES)]
+
+
+def unpack_fault_types(packed) -> list[int]:
+    """FDIR_ESTIMATE.fault_type (4 bytes, or fewer/none from a sender without the extension) -> the
+    8 channels' FDIR_FAULT_TYPE codes (0 = BIAS where absent)."""
+    b = list(packed or []) + [0] * FAULT_TYPE_BYTES
+    return [(b[i // 2] >> (4 * (i % 2))) & 0xF for i in range(MAX_FAULTS)]
 
 
 def dialect_text() -> str:

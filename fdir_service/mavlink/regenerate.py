@@ -24,8 +24,9 @@ def _pymavlink_definitions() -> Path:
     return Path(pymavlink.__file__).resolve().parent / "dialects" / "v20"
 
 
-def generate(output: Path) -> Path:
-    """Run mavgen (Python, MAVLink 2, validated) on fdir.xml; write the module to `output`."""
+def generate(output: Path, xml_text: str | None = None) -> Path:
+    """Run mavgen (Python, MAVLink 2, validated) on fdir.xml (or on `xml_text`, another version of
+    it: tests build an older decoder); write the module to `output`."""
     from pymavlink.generator import mavgen
 
     defs = _pymavlink_definitions()
@@ -34,7 +35,10 @@ def generate(output: Path) -> Path:
         for name in ("common.xml", "standard.xml", "minimal.xml"):
             shutil.copy(defs / name, tmpdir / name)
         xml = tmpdir / "fdir.xml"
-        shutil.copy(DIALECT_XML, xml)
+        if xml_text is None:
+            shutil.copy(DIALECT_XML, xml)
+        else:
+            xml.write_text(xml_text)
         out_base = tmpdir / "fdir"
         opts = mavgen.Opts(str(out_base), wire_protocol="2.0", language="Python3", validate=True)
         if not mavgen.mavgen(opts, [str(xml)]):

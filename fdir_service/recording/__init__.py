@@ -3,6 +3,7 @@
 from fdir_service.recording.logtools import McapLog, linear_scan, log_info, recover
 from fdir_service.recording.recorder import (
     ESTIMATE_TOPIC,
+    ITEMS_TOPIC,
     LOG_TOPIC,
     PARTICLES_TOPIC,
     RAW_IN_TOPIC,
@@ -12,6 +13,6 @@ from fdir_service.recording.recorder import (
 )
 
 __all__ = [
-    "ESTIMATE_TOPIC", "LOG_TOPIC", "PARTICLES_TOPIC", "RAW_IN_TOPIC", "RAW_OUT_TOPIC",
+    "ESTIMATE_TOPIC", "ITEMS_TOPIC", "LOG_TOPIC", "PARTICLES_TOPIC", "RAW_IN_TOPIC", "RAW_OUT_TOPIC",
     "McapLog", "Recorder", "default_record_path", "linear_scan", "log_info", "recover",
 ]

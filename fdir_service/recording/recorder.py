@@ -4,6 +4,8 @@ Topics (all JSON with a named jsonschema, see `fdir_service.recording.schemas`):
   /mavlink/raw/in, /mavlink/raw/out   bytes exactly as read from / written to the autopilot link
   /mavlink/<sys>/<comp>/<MSG>         every decoded, accepted input message
   /fdir/estimate                      one flat record per filter step (fdir.Estimate)
+  /fdir/items                         per frame, the monitored items (fdir.Items), only for estimators
+                                      with typed faults or several entries per target
   /fdir/particles                     the 20 most weighted particles, once per second of frame time
   /fdir/log                           events (foxglove.Log): fault declared/cleared, stale, rejected
 Metadata records: "config", "versions", "dialect" (as the pipeline hands them over), repeated in
@@ -33,11 +35,13 @@ import numpy as np
 from fdir_service.estimation.base import StepOutput
 from fdir_service.recording import schemas as S
 from fdir_service.recording.sink import DEFAULT_CHUNK_BYTES, JsonMcapFile
+from fdir_service.runtime.items import ItemReport
 
 RAW_IN_TOPIC = "/mavlink/raw/in"
 RAW_OUT_TOPIC = "/mavlink/raw/out"
 ESTIMATE_TOPIC = "/fdir/estimate"
 PARTICLES_TOPIC = "/fdir/particles"
+ITEMS_TOPIC = "/fdir/items"
 LOG_TOPIC = "/fdir/log"
 
 
@@ -76,7 +80,7 @@ class Recorder:
         self._flush_interval_s = flush_interval_s
         self._lock = threading.RLock()
         self._metadata: list[tuple[str, dict[str, str]]] = []
-        self._estimate_layout: tuple[tuple[str, ...], int, bool] | None = None
+        self._estimate_layout: tuple[tuple[str, ...], int, bool, bool] | None = None
         self._state_names: list[str] | None = None
         self.paths: list[Path] = []
         self._segment_start_ns: int | None = None
@@ -196,7 +200,7 @@ class Recorder:
     def _on_estimate_now(self, frame_time_s: float, out: StepOutput, latency_s: float, t_ns: int,
                          obj: dict[str, Any] | None = None) -> None:
         n = int(np.asarray(out.x_mean).size)
-        layout = (tuple(out.fault_ids), n, S.is_adaptive(out))
+        layout = (tuple(out.fault_ids), n, S.is_adaptive(out), S.is_typed(out))
         with self._lock:
             if self._estimate_layout is None:
                 self._estimate_layout = layout
@@ -205,11 +209,19 @@ class Recorder:
                 raise ValueError(f"estimate layout changed mid-recording: {layout} != "
                                  f"{self._estimate_layout}")
         def schema() -> dict[str, Any]:
-            return S.estimate_schema(layout[0], n, adaptive=layout[2])
+            return S.estimate_schema(layout[0], n, adaptive=layout[2], typed=layout[3])
 
         if obj is None:
             obj = S.estimate_json(frame_time_s, out, latency_s)
         self._write(ESTIMATE_TOPIC, schema, obj, t_ns)
+
+    def on_items(self, frame_time_s: float, report: ItemReport, t_ns: int) -> None:
+        """One frame's monitored items on `/fdir/items` (see `schemas.items_field_names`)."""
+        obj = S.items_json(frame_time_s, report)
+        if self.deferred:
+            self._queue.append((self._write, (ITEMS_TOPIC, lambda: S.items_schema(report.names), obj, t_ns)))
+            return
+        self._write(ITEMS_TOPIC, lambda: S.items_schema(report.names), obj, t_ns)
 
     def on_event(self, level: str, text: str, t_ns: int) -> None:
         """An event on the `foxglove.Log` topic (level "info" | "warning" | "error")."""

@@ -2,7 +2,8 @@
 
 One named schema per MAVLink message type (`mavlink.<MSG>`, built from pymavlink's field tables),
 the flat `/fdir/estimate` record (`fdir.Estimate`, one numeric field per quantity so Foxglove's
-plot panel addresses `/fdir/estimate.f_gnss`), the top-particle snapshot (`fdir.Particles`), the
+plot panel addresses `/fdir/estimate.f_gnss`), the per-item view of estimators with typed faults
+or several entries per target (`fdir.Items`, `/fdir/items`), the top-particle snapshot (`fdir.Particles`), the
 raw MAVLink byte stream (`fdir.RawMavlink`, base64 bytes) and Foxglove's own `foxglove.Log` (the name
 Foxglove's Log panel recognises).
 """
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
+from fdir_service.runtime.items import ItemReport, type_code
 
 SCHEMA_ENCODING = "jsonschema"
 MESSAGE_ENCODING = "json"
@@ -156,12 +158,15 @@ def raw_bytes(record: dict[str, Any]) -> bytes:
 
 # ----------------------------------------------------------------------------- estimate
 
-def estimate_field_names(fault_ids: Sequence[str], n_state: int, *, adaptive: bool) -> list[str]:
+def estimate_field_names(fault_ids: Sequence[str], n_state: int, *, adaptive: bool,
+                         typed: bool = False) -> list[str]:
     """Flat field names of `/fdir/estimate`, in record order.
 
     `x_<s>` / `var_<s>`: extended-state mean and covariance diagonal (airframe states by name, then
     one `x_f_<id>` per fault); `f_<id>` fault estimate (SI), `pf_<id>` P(fault); adaptive filters add
-    `pfa_<id>`, `pmd_<id>` and the transition matrix `pi00_<id>` .. `pi11_<id>`.
+    `pfa_<id>`, `pmd_<id>` and the transition matrix `pi00_<id>` .. `pi11_<id>`; a step with a
+    non-bias fault type (`is_typed`) adds, after latency_s, `ft_<id>` (FDIR_FAULT_TYPE code) and
+    `fv_<id>` (user-facing value: SI, or unitless k and g) per entry.
     """
     states = state_names(fault_ids, n_state)
     names = ["frame_time_s"]
@@ -175,6 +180,8 @@ def estimate_field_names(fault_ids: Sequence[str], n_state: int, *, adaptive: bo
         for ij in ("00", "01", "10", "11"):
             names += [f"pi{ij}_{f}" for f in fault_ids]
     names += ["n_eff", "resampled", "latency_s"]
+    if typed:
+        names += [f"ft_{f}" for f in fault_ids] + [f"fv_{f}" for f in fault_ids]
     return names
 
 
@@ -186,11 +193,15 @@ def state_names(fault_ids: Sequence[str], n_state: int) -> list[str]:
     return names[:n_state]
 
 
-def estimate_schema(fault_ids: Sequence[str], n_state: int, *, adaptive: bool) -> dict[str, Any]:
+def estimate_schema(fault_ids: Sequence[str], n_state: int, *, adaptive: bool,
+                    typed: bool = False) -> dict[str, Any]:
     """The `fdir.Estimate` schema for one filter layout (flat numbers: Foxglove plot-panel paths)."""
     props: dict[str, Any] = {}
-    for name in estimate_field_names(fault_ids, n_state, adaptive=adaptive):
+    for name in estimate_field_names(fault_ids, n_state, adaptive=adaptive, typed=typed):
         props[name] = {"type": "boolean"} if name == "resampled" else dict(NULLABLE_NUMBER)
+    for f in fault_ids if typed else ():
+        props[f"ft_{f}"] = {"type": "integer", "description": "fault type (FDIR_FAULT_TYPE: 0 bias, "
+                            "1 stuck, 2 noisy, 3 jammed, 4 effectiveness)"}
     props["frame_time_s"]["description"] = "frame time, s (the autopilot's timestamp of the frame)"
     props["latency_s"]["description"] = "wall-clock processing time of the step, s (not reproducible)"
     props["n_eff"]["description"] = "effective sample size 1 / sum w^2"
@@ -258,12 +269,67 @@ def estimate_json(frame_time_s: float, out: StepOutput, latency_s: float) -> dic
     d.update(zip(keys, vals, strict=True))
     d["resampled"] = bool(out.resampled)
     d["latency_s"] = float(latency_s)
+    if is_typed(out):
+        d.update(typed_fields(out))
+    return d
+
+
+def is_typed(out: StepOutput) -> bool:
+    """Whether a step reports a fault type other than bias (then its record carries ft_ and fv_)."""
+    return any(t != "bias" for t in out.fault_types)
+
+
+def typed_fields(out: StepOutput) -> dict[str, Any]:
+    """`ft_<id>` (FDIR_FAULT_TYPE code) and `fv_<id>` (user-facing value, SI or unitless; None for
+    NaN) of every entry of one step."""
+    ids = out.fault_ids
+    d: dict[str, Any] = {f"ft_{f}": type_code(out.type_of(j)) for j, f in enumerate(ids)}
+    d.update({f"fv_{f}": finite_or_none(out.value_of(j)) for j, f in enumerate(ids)})
     return d
 
 
 def is_adaptive(out: StepOutput) -> bool:
     """Whether a step carries Pfa/Pmd and a transition matrix (AJMRPF / ARJMRPF)."""
     return out.pfa is not None and out.pmd is not None and out.transition is not None
+
+
+# ----------------------------------------------------------------------------- items
+
+def items_field_names(names: Sequence[str]) -> list[str]:
+    """Flat field names of `/fdir/items`, in record order: per item `p_<name>` P(item faulty),
+    `type_<name>` its most probable type (FDIR_FAULT_TYPE code), `v_<name>` that type's value (SI;
+    k, g unitless), `declared_<name>` (0/1, after hysteresis)."""
+    out = ["frame_time_s"]
+    for prefix in ("p", "type", "v", "declared"):
+        out += [f"{prefix}_{n}" for n in names]
+    return out
+
+
+def items_schema(names: Sequence[str]) -> dict[str, Any]:
+    """The `fdir.Items` schema for one item layout (flat numbers, like `fdir.Estimate`)."""
+    props: dict[str, Any] = {k: dict(NULLABLE_NUMBER) for k in items_field_names(names)}
+    for n in names:
+        props[f"type_{n}"] = {"type": "integer", "description": "FDIR_FAULT_TYPE code"}
+        props[f"declared_{n}"] = {"type": "integer", "enum": [0, 1]}
+    return {
+        "title": "fdir.Items",
+        "description": "One frame's monitored items (a target and its typed fault entries, named by its "
+        "first entry): P(item faulty), most probable type and its value, declared (after hysteresis).",
+        "type": "object",
+        "properties": props,
+        "required": list(props),
+    }
+
+
+def items_json(frame_time_s: float, report: ItemReport) -> dict[str, Any]:
+    """The flat `fdir.Items` object of one frame (frame time s; see `items_field_names`)."""
+    names, view = report.names, report.view
+    d: dict[str, Any] = {"frame_time_s": float(frame_time_s)}
+    d.update({f"p_{n}": finite_or_none(v) for n, v in zip(names, view.p, strict=True)})
+    d.update({f"type_{n}": c for n, c in zip(names, report.type_codes, strict=True)})
+    d.update({f"v_{n}": finite_or_none(v) for n, v in zip(names, view.value, strict=True)})
+    d.update({f"declared_{n}": int(v) for n, v in zip(names, report.declared, strict=True)})
+    return d
 
 
 # ----------------------------------------------------------------------------- particles

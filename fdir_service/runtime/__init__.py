@@ -4,6 +4,7 @@
 - `frames`: frame assembly by message timestamp (`FrameAssembler` -> `AssembledFrame`).
 - `health`: estimator health checks, re-initialisation decisions, the HEARTBEAT state.
 - `events`: what the runtime says, as typed objects (`Rejected`, `Reinitialised`, `LinkLost`, ...).
+- `items`: monitored items (a target and its typed fault entries): grouping and per-frame view.
 - `publishing`: what goes out on the link (`Publisher`), STATUSTEXT rate limits and notices.
 - `pipeline`: bytes in -> the parts in sequence -> bytes out (`Pipeline`).
 """

@@ -276,6 +276,29 @@ class FaultDeclared(Event):
     p: float
     estimate: float
     statustext: str
+    fault_type: str = "bias"
+    """The item's most probable type when declared; `estimate` is then its user-facing value (SI;
+    a noisy k and an effectiveness g unitless)."""
+    level: ClassVar[str] = "warning"
+
+    @property
+    def text(self) -> str:
+        return f"{self.statustext} (t={self.time_s:.2f} s)"
+
+
+@dataclass(frozen=True)
+class FaultTypeChanged(Event):
+    """A declared item's most probable type changed from `previous_type` to `fault_type` at frame
+    time `time_s` (s), with P(item faulty) `p` and the new type's user-facing `value` (SI; k and g
+    unitless); `statustext`: the STATUSTEXT sent ("FDIR q stuck at 3.2 deg/s p=0.97 (was bias)")."""
+
+    fault_id: str
+    time_s: float
+    p: float
+    value: float
+    statustext: str
+    fault_type: str
+    previous_type: str
     level: ClassVar[str] = "warning"
 
     @property

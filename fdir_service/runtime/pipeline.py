@@ -83,7 +83,9 @@ LINK_MESSAGES_KEPT = 64
 class PipelineObserver(Protocol):
     """Receives everything the pipeline sees and says (the MCAP recorder is one). An observer may
     also define `on_runtime_event(event: events.Event, t_ns: int)` to receive each event typed
-    (after its `on_event(level, text, t_ns)`)."""
+    (after its `on_event(level, text, t_ns)`), and `on_items(frame_time_s: float,
+    report: items.ItemReport, t_ns: int)` to receive each frame's monitored items (after its
+    `on_estimate`; only for estimators with typed faults or several entries per target)."""
 
     def on_metadata(self, name: str, data: dict[str, str]) -> None: ...
     def on_raw(self, direction: str, data: bytes, t_ns: int) -> None: ...
@@ -480,6 +482,7 @@ class Pipeline:
     def _publish(self, frame: AssembledFrame, out: StepOutput, msgs: list[bytes], t0: float,
                  t_ns: int) -> None:
         """Count the frame, publish its messages into msgs, record the latency, tell observers."""
+        out = self.publisher.typed_output(out)
         self.monitor.published(out)
         self.frames += 1
         self.publisher.health = self.monitor.heartbeat_state(frame, self.link_lost)
@@ -500,12 +503,22 @@ class Pipeline:
         """The estimate to every observer; the top particles once per second of frame time."""
         for ob in self.observers:
             ob.on_estimate(frame.time_s, out, latency, t_ns)
+        if not self.publisher.plain:
+            self._observe_items(frame.time_s, t_ns)
         bucket = frame.time_us // 1_000_000
         if bucket != self._last_particles_bucket:
             self._last_particles_bucket = bucket
             states, weights = self.filter.top_particles(PARTICLES_TOP_K)
             for ob in self.observers:
                 ob.on_particles(frame.time_s, np.asarray(states), np.asarray(weights), t_ns)
+
+    def _observe_items(self, frame_time_s: float, t_ns: int) -> None:
+        """The frame's monitored items to every observer that has `on_items` (typed estimators)."""
+        report = self.publisher.item_report()
+        for ob in self.observers:
+            on_items = getattr(ob, "on_items", None)
+            if on_items is not None and report is not None:
+                on_items(frame_time_s, report, t_ns)
 
     # ------------------------------------------------------------------ public views
     def state_from_measurements(self, y: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -6,9 +6,16 @@ describes. Rates are counted in frame time, so a replay publishes the same messa
 is sent right after the FDIR_ESTIMATE of the frame that triggered it (STATUSTEXT has no time
 field; a ground station dates it by that estimate).
 
-Hysteresis (config `[publish.declare]`): a fault is declared when P(fault) >= p_declare on every
-frame for declare_hold_s of frame time, and cleared when P(fault) <= p_clear for clear_hold_s; each
-change is a typed event (`FaultDeclared` / `FaultCleared`) besides its STATUSTEXT.
+Items (`items.py`): the service reports on monitored items, a target watched by one or more typed
+fault entries (one item per entry when every target has one entry). Per item and frame: P(item
+faulty), its most probable type and that type's user-facing value. FDIR_ESTIMATE's channels are the
+items; NAMED_VALUE_FLOAT stays per entry (f_<id>, pf_<id>, ...).
+
+Hysteresis (config `[publish.declare]`), per item: an item is declared when P(item faulty) >=
+p_declare on every frame for declare_hold_s of frame time, and cleared when P <= p_clear for
+clear_hold_s; a declaration carries the item's most probable type, and while declared a new most
+probable type held for declare_hold_s is announced. Each change is a typed event (`FaultDeclared`,
+`FaultCleared`, `FaultTypeChanged`) besides its STATUSTEXT ("FDIR q stuck at 3.2 deg/s p=0.97").
 
 `RateLimit` spaces the STATUSTEXTs the runtime sends about one subject in frame time;
 `sensor_notice` and `link_notice` are the STATUSTEXTs of sensor, clock and link events.
@@ -16,17 +23,34 @@ change is a typed event (`FaultDeclared` / `FaultCleared`) besides its STATUSTEX
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimator_config import FaultSpec as FaultChannel
-from fdir_service.mavlink import MAX_FAULTS, dialect, frame_payload
+from fdir_service.mavlink import FAULT_TYPE_BYTES, MAX_FAULTS, dialect, frame_payload, pack_fault_types
 from fdir_service.mavlink import pack as fast_pack
-from fdir_service.runtime.events import Event, FaultCleared, FaultDeclared, LinkLost, LinkRegained
+from fdir_service.runtime.events import (
+    Event,
+    FaultCleared,
+    FaultDeclared,
+    FaultTypeChanged,
+    LinkLost,
+    LinkRegained,
+)
+from fdir_service.runtime.items import (
+    ItemFrame,
+    ItemReport,
+    entry_types,
+    is_plain,
+    item_frame,
+    item_layout,
+    type_code,
+)
 from fdir_service.service_config import PublishConfig
 
 if TYPE_CHECKING:
@@ -39,17 +63,55 @@ _EST = dialect.MAVLink_fdir_estimate_message
 
 @dataclass
 class _Hysteresis:
+    """One item's declaration state (frame times in us)."""
+
     declared: bool = False
     since_us: int | None = None  # first frame of the current run above p_declare / below p_clear
+    fault_type: str = "bias"     # the type announced by the last declaration or type change
+    candidate: str = "bias"      # while declared: the most probable type differing from fault_type
+    type_since_us: int | None = None  # first frame of the candidate's current run
 
 
-def statustext_for(fault: FaultChannel, estimate_si: float, p: float, declared: bool) -> str:
-    """'FDIR gnss fault +50.1 m p=0.98' / 'FDIR gnss cleared p=0.03' (estimate in the fault's unit)."""
-    if not declared:
-        return f"FDIR {fault.id} cleared p={p:.2f}"
-    val = estimate_si / fault.unit_scale
+class Change(NamedTuple):
+    """A declaration change of item `item`: `what` "declared" | "cleared" | "type" (a declared
+    item's type changed from `previous`), and its STATUSTEXT."""
+
+    item: int
+    what: str
+    text: str
+    previous: str = ""
+
+
+def value_text(fault: FaultChannel, fault_type: str, value: float) -> str:
+    """A fault's user-facing value in words: '+50.1 m' (bias, in the fault's unit), 'at 3.2 deg/s'
+    (stuck reading, jammed position), 'x4.1' (noisy: noise multiplier k), '0%' (effectiveness g)."""
+    if fault_type == "noisy":
+        return f"x{value:.1f}"
+    if fault_type == "effectiveness":
+        return f"{round(100 * value)}%" if math.isfinite(value) else f"{value}%"
+    val = value / fault.unit_scale
     unit = "" if fault.unit == "1" else f" {fault.unit}"
-    return f"FDIR {fault.id} fault {val:+.1f}{unit} p={p:.2f}"
+    if fault_type in ("stuck", "jammed"):
+        return f"at {val:.1f}{unit}"
+    return f"{val:+.1f}{unit}"
+
+
+def statustext_for(fault: FaultChannel, estimate_si: float, p: float, declared: bool,
+                   fault_type: str = "bias", name: str | None = None) -> str:
+    """'FDIR gnss fault +50.1 m p=0.98', 'FDIR q stuck at 3.2 deg/s p=0.97', 'FDIR baro noisy x4.1
+    p=0.93', 'FDIR dt effectiveness 0% p=0.99' / 'FDIR gnss cleared p=0.03'. fault: the entry of the
+    given type (its unit); estimate_si: that entry's user-facing value (SI; k, g unitless); p:
+    P(item faulty); name: the item's name (default the entry's id)."""
+    name = fault.id if name is None else name
+    if not declared:
+        return f"FDIR {name} cleared p={p:.2f}"
+    word = "fault" if fault_type == "bias" else fault_type
+    return f"FDIR {name} {word} {value_text(fault, fault_type, estimate_si)} p={p:.2f}"
+
+
+def _held(since_us: int, time_us: int, hold_s: float) -> bool:
+    """Whether a run that started at since_us (us) has lasted hold_s (s) at frame time time_us."""
+    return time_us - since_us + _EPS_US >= hold_s * 1e6
 
 
 class RateLimit:
@@ -88,13 +150,17 @@ class Publisher:
 
     def __init__(self, config: PublishConfig, faults: tuple[FaultChannel, ...], mav: dialect.MAVLink,
                  adaptive: bool) -> None:
-        if len(faults) > MAX_FAULTS:
-            raise ValueError(f"FDIR_ESTIMATE carries at most {MAX_FAULTS} fault channels")
+        self.layout = item_layout(faults)
+        if len(self.layout) > MAX_FAULTS:
+            raise ValueError(f"FDIR_ESTIMATE carries at most {MAX_FAULTS} monitored items")
         self.config = config
         self.faults = faults
+        self.types = entry_types(faults)
+        self.plain = is_plain(self.layout, self.types)   # all single bias entries: output as before
         self.mav = mav
         self.adaptive = adaptive
-        self.hyst = [_Hysteresis() for _ in faults]
+        self.hyst = [_Hysteresis() for _ in self.layout.names]
+        self.view: ItemFrame | None = None   # the last published frame's item view
         self.frame_seq = 0
         self._last_bucket: dict[str, int] = {}
         self.health = dialect.MAV_STATE_STANDBY
@@ -143,45 +209,93 @@ class Publisher:
         return [self._pack(dialect.MAVLink_statustext_message(severity, c, self.text_id, seq))
                 for seq, c in enumerate(chunks)]
 
-    def update_declarations(self, time_us: int, out: StepOutput) -> list[tuple[int, bool, str]]:
-        """Advance the hysteresis; return (fault index, declared, text) for each change."""
-        dc = self.config.declare
+    def item_view(self, out: StepOutput) -> ItemFrame:
+        """The step's item view (entry types from the step, else from the config)."""
+        return item_frame(self.layout, out, tuple(out.fault_types) or self.types)
+
+    def update_declarations(self, time_us: int, out: StepOutput, view: ItemFrame | None = None
+                            ) -> list[Change]:
+        """Advance every item's hysteresis at frame time time_us (us); return its changes."""
+        view = self.item_view(out) if view is None else view
         changes = []
-        for i, (f, h) in enumerate(zip(self.faults, self.hyst, strict=True)):
-            p = float(out.fault_probability[i])
-            crossing = (p <= dc.p_clear) if h.declared else (p >= dc.p_declare)
-            if not crossing:
-                h.since_us = None
-                continue
-            if h.since_us is None:
-                h.since_us = time_us
-            hold = dc.clear_hold_s if h.declared else dc.declare_hold_s
-            if time_us - h.since_us + _EPS_US >= hold * 1e6:
-                h.declared = not h.declared
-                h.since_us = None
-                changes.append((i, h.declared, statustext_for(f, float(out.fault_estimate[i]), p,
-                                                              h.declared)))
+        for i, h in enumerate(self.hyst):
+            change = self._declaration_change(i, h, time_us, view)
+            if change is not None:
+                changes.append(change)
         return changes
+
+    def _declaration_change(self, i: int, h: _Hysteresis, time_us: int, view: ItemFrame) -> Change | None:
+        """Item i's declaration or type change on this frame, if any."""
+        dc = self.config.declare
+        p, ftype = float(view.p[i]), view.types[i]
+        crossing = (p <= dc.p_clear) if h.declared else (p >= dc.p_declare)
+        if not crossing:
+            h.since_us = None
+            return self._type_change(i, h, time_us, view)
+        if h.since_us is None:
+            h.since_us = time_us
+        if not _held(h.since_us, time_us, dc.clear_hold_s if h.declared else dc.declare_hold_s):
+            return self._type_change(i, h, time_us, view)
+        h.declared, h.since_us, h.type_since_us = not h.declared, None, None
+        h.fault_type = h.candidate = ftype
+        return Change(i, "declared" if h.declared else "cleared", self._text(i, view, h.declared))
+
+    def _type_change(self, i: int, h: _Hysteresis, time_us: int, view: ItemFrame) -> Change | None:
+        """While item i is declared: a change once a new most probable type has held for
+        declare_hold_s (a candidate that changes restarts the hold)."""
+        ftype = view.types[i]
+        if not h.declared or ftype == h.fault_type:
+            h.type_since_us = None
+            return None
+        if h.type_since_us is None or ftype != h.candidate:
+            h.candidate, h.type_since_us = ftype, time_us
+        if not _held(h.type_since_us, time_us, self.config.declare.declare_hold_s):
+            return None
+        previous, h.fault_type, h.type_since_us = h.fault_type, ftype, None
+        return Change(i, "type", f"{self._text(i, view, True)} (was {previous})", previous)
+
+    def _text(self, i: int, view: ItemFrame, declared: bool) -> str:
+        """Item i's STATUSTEXT for this frame's view (declared: its type and value in words)."""
+        entry = self.faults[int(view.entry[i])]
+        return statustext_for(entry, float(view.value[i]), float(view.p[i]), declared, view.types[i],
+                              self.layout.names[i])
+
+    def item_report(self) -> ItemReport | None:
+        """The last published frame's items for observers (None before the first frame)."""
+        if self.view is None:
+            return None
+        return ItemReport(self.layout.names, self.view, tuple(h.declared for h in self.hyst))
+
+    def typed_output(self, out: StepOutput) -> StepOutput:
+        """out with the config's entry types when the filter reports none and some entry is not a
+        bias (so observers and the recording see the types); out itself otherwise."""
+        if out.fault_types or all(t == "bias" for t in self.types):
+            return out
+        return dataclasses.replace(out, fault_types=self.types)
 
     @property
     def declared_mask(self) -> int:
         return sum(1 << i for i, h in enumerate(self.hyst) if h.declared)
 
     def publish(self, frame: AssembledFrame, out: StepOutput, gap: bool = False
-                ) -> tuple[list[bytes], list[FaultDeclared | FaultCleared]]:
+                ) -> tuple[list[bytes], list[FaultDeclared | FaultCleared | FaultTypeChanged]]:
         """Messages for one stepped frame (HEARTBEAT, FDIR_ESTIMATE, NAMED_VALUE_FLOAT at their
         rates, then a STATUSTEXT per declaration change), and the declaration events."""
         msgs: list[bytes] = []
         self.frame_seq += 1
-        changes = self.update_declarations(frame.time_us, out)
+        self.view = view = self.item_view(out)
+        changes = self.update_declarations(frame.time_us, out, view)
         if self._due("hb", self.config.heartbeat_period_s, frame.time_us):
             msgs.append(self.heartbeat())
         if self._due("est", 1.0 / self.config.estimate_rate_hz, frame.time_us):
-            msgs.append(self.estimate_bytes(frame, out, gap))
+            msgs.append(self.estimate_bytes(frame, out, gap, view))
         if self._due("nvf", 1.0 / self.config.named_value_rate_hz, frame.time_us):
             msgs += self.named_values(frame.time_boot_ms, out)
-        events = [self._declaration(frame, out, i, declared, text) for i, declared, text in changes]
+        events = [self._declaration(frame, view, c) for c in changes]
         for e in events:
+            if isinstance(e, FaultTypeChanged):
+                msgs += self.statustexts(dialect.MAV_SEVERITY_WARNING, e.statustext)
+                continue
             declared = isinstance(e, FaultDeclared)
             sev = dialect.MAV_SEVERITY_WARNING if declared else dialect.MAV_SEVERITY_NOTICE
             msgs.append(self.statustext(sev, e.statustext))
@@ -199,31 +313,50 @@ class Publisher:
                 msgs.append(self.named_value_float(time_boot_ms, name, float(v)))
         return msgs
 
-    def _declaration(self, frame: AssembledFrame, out: StepOutput, i: int, declared: bool, text: str
-                     ) -> FaultDeclared | FaultCleared:
-        fid, p = self.faults[i].id, float(out.fault_probability[i])
-        if declared:
-            return FaultDeclared(fid, frame.time_s, p, float(out.fault_estimate[i]), text)
-        return FaultCleared(fid, frame.time_s, p, text)
+    def _declaration(self, frame: AssembledFrame, view: ItemFrame, c: Change
+                     ) -> FaultDeclared | FaultCleared | FaultTypeChanged:
+        """The typed event of one declaration change (item name, frame time s, P(item faulty))."""
+        name, p = self.layout.names[c.item], float(view.p[c.item])
+        if c.what == "cleared":
+            return FaultCleared(name, frame.time_s, p, c.text)
+        ftype, value = view.types[c.item], float(view.value[c.item])
+        if c.what == "declared":
+            return FaultDeclared(name, frame.time_s, p, value, c.text, ftype)
+        return FaultTypeChanged(name, frame.time_s, p, value, c.text, ftype, c.previous)
 
-    def _estimate_fields(self, frame: AssembledFrame, out: StepOutput, gap: bool) -> tuple:
+    def _estimate_fields(self, frame: AssembledFrame, out: StepOutput, gap: bool,
+                         view: ItemFrame | None = None) -> tuple:
         """FDIR_ESTIMATE's fields in declaration order (time_boot_ms, frame_seq, fault_count,
         declared, flags, mask, state[5], state_std[5], fault[8], fault_std[8], p_fault[8], pfa[8],
-        pmd[8], n_eff), as Python numbers and lists (NaN where a field has no value)."""
-        nf = len(self.faults)
+        pmd[8], n_eff, fault_type[4] (packed), fault_value[8]), as Python numbers and lists (NaN where a field
+        has no value). Channel i is item i: its most probable entry's fault, std, pfa, pmd, type and
+        value, and P(item faulty); the extensions are all 0 (not sent) when `plain`."""
+        view = self.item_view(out) if view is None else view
+        ni, nf = len(self.layout), len(self.faults)
+        best = view.entry
         x = np.asarray(out.x_mean, dtype=float)
-        n = x.size
         nan8 = [math.nan] * MAX_FAULTS
 
-        def pad(v) -> list[float]:
+        def pad(v, pick: bool = True) -> list[float]:
             if v is None:
                 return nan8
-            return np.asarray(v, dtype=float).ravel()[:nf].tolist() + nan8[nf:]
+            v = np.asarray(v, dtype=float).ravel()
+            return (v[best] if pick else v[:ni]).tolist() + nan8[ni:]
 
-        if out.x_cov is not None:
-            std = np.sqrt(np.clip(np.diag(out.x_cov), 0.0, None))
-        else:
-            std = np.full(n, np.nan)
+        std = (np.sqrt(np.clip(np.diag(out.x_cov), 0.0, None)) if out.x_cov is not None
+               else np.full(x.size, np.nan))
+        fault_std = pad(std[5:]) if std.size >= 5 + nf else nan8
+        ftype, fvalue = [0] * FAULT_TYPE_BYTES, [0.0] * MAX_FAULTS
+        if not self.plain:
+            ftype = pack_fault_types([type_code(t) for t in view.types])
+            fvalue = pad(view.value, pick=False)
+        return (frame.time_boot_ms, self.frame_seq & 0xFFFFFFFF, ni, self.declared_mask,
+                self._flags(frame, out, gap), sum(1 << j for j, ok in enumerate(frame.mask[:8]) if ok),
+                x[:5].tolist(), std[:5].tolist(), pad(out.fault_estimate), fault_std,
+                pad(view.p, pick=False), pad(out.pfa), pad(out.pmd), float(out.n_eff), ftype, fvalue)
+
+    def _flags(self, frame: AssembledFrame, out: StepOutput, gap: bool) -> int:
+        """FDIR_ESTIMATE_FLAGS bits of one frame."""
         flags = 0
         if out.resampled:
             flags |= dialect.FDIR_ESTIMATE_FLAGS_RESAMPLED
@@ -233,25 +366,22 @@ class Publisher:
             flags |= dialect.FDIR_ESTIMATE_FLAGS_SENSOR_STALE
         if gap or frame.synthetic:
             flags |= dialect.FDIR_ESTIMATE_FLAGS_GAP
-        mask_bits = sum(1 << j for j, ok in enumerate(frame.mask[:8]) if ok)
-        fault_std = pad(std[5:5 + nf]) if std.size >= 5 + nf else nan8
-        return (frame.time_boot_ms, self.frame_seq & 0xFFFFFFFF, nf, self.declared_mask, flags, mask_bits,
-                x[:5].tolist(), std[:5].tolist(), pad(out.fault_estimate), fault_std,
-                pad(out.fault_probability), pad(out.pfa), pad(out.pmd), float(out.n_eff))
+        return flags
 
     def estimate_message(self, frame: AssembledFrame, out: StepOutput, gap: bool = False):
         """The frame's FDIR_ESTIMATE as a pymavlink message object (the reference encoding)."""
         return _EST(*self._estimate_fields(frame, out, gap))
 
-    def estimate_bytes(self, frame: AssembledFrame, out: StepOutput, gap: bool = False) -> bytes:
+    def estimate_bytes(self, frame: AssembledFrame, out: StepOutput, gap: bool = False,
+                       view: ItemFrame | None = None) -> bytes:
         """The frame's FDIR_ESTIMATE encoded once, straight from the fields (the same bytes as
         pymavlink's pack of `estimate_message`; takes the codec's next sequence number)."""
-        t_ms, seq, nf, decl, flags, mask, st, sd, f, fs, pf, pfa, pmd, n_eff = self._estimate_fields(
-            frame, out, gap)
+        fields = self._estimate_fields(frame, out, gap, view)
+        t_ms, seq, nf, decl, flags, mask, st, sd, f, fs, pf, pfa, pmd, n_eff, ft, fv = fields
         b = None
         if not self.mav.signing.sign_outgoing:
             b = self._frame(_EST, _EST.unpacker.pack(t_ms, seq, *st, *sd, *f, *fs, *pf, *pfa, *pmd, n_eff,
-                                                     nf, decl, flags, mask))
+                                                     nf, decl, flags, mask, *ft, *fv))
         if b is None:
-            b = self._pack(_EST(t_ms, seq, nf, decl, flags, mask, st, sd, f, fs, pf, pfa, pmd, n_eff))
+            b = self._pack(_EST(*fields))
         return b

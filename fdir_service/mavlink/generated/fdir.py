@@ -372,6 +372,24 @@ enums["FDIR_ESTIMATE_FLAGS"][8] = EnumEntry("FDIR_ESTIMATE_FLAGS_GAP", """Frames
 FDIR_ESTIMATE_FLAGS_ENUM_END = 9
 enums["FDIR_ESTIMATE_FLAGS"][9] = EnumEntry("FDIR_ESTIMATE_FLAGS_ENUM_END", """""")
 
+# FDIR_FAULT_TYPE
+enums["FDIR_FAULT_TYPE"] = Enum()
+enums["FDIR_FAULT_TYPE"].bitmask = False
+FDIR_FAULT_TYPE_BIAS = 0
+enums["FDIR_FAULT_TYPE"][0] = EnumEntry("FDIR_FAULT_TYPE_BIAS", """An offset added to the reading or the input; value: the offset, SI units of the target.""")
+FDIR_FAULT_TYPE_STUCK = 1
+enums["FDIR_FAULT_TYPE"][1] = EnumEntry("FDIR_FAULT_TYPE_STUCK", """A sensor holds one reading whatever the state does; value: the held reading, SI.""")
+FDIR_FAULT_TYPE_NOISY = 2
+enums["FDIR_FAULT_TYPE"][2] = EnumEntry("FDIR_FAULT_TYPE_NOISY", """A sensor's noise is multiplied by k >= 1; value: k (unitless).""")
+FDIR_FAULT_TYPE_JAMMED = 3
+enums["FDIR_FAULT_TYPE"][3] = EnumEntry("FDIR_FAULT_TYPE_JAMMED", """An actuator holds one position whatever the command; value: the held position, SI (rad; throttle 0..1).""")
+FDIR_FAULT_TYPE_EFFECTIVENESS = 4
+enums["FDIR_FAULT_TYPE"][4] = EnumEntry("FDIR_FAULT_TYPE_EFFECTIVENESS", """An actuator's effect is scaled by a gain g in 0..1 (loss of effectiveness; g = 0: e.g. engine loss); value: g (unitless).""")
+FDIR_FAULT_TYPE_BLOCKED = 5
+enums["FDIR_FAULT_TYPE"][5] = EnumEntry("FDIR_FAULT_TYPE_BLOCKED", """Reserved (a blocked pitot or static port); not sent yet.""")
+FDIR_FAULT_TYPE_ENUM_END = 6
+enums["FDIR_FAULT_TYPE"][6] = EnumEntry("FDIR_FAULT_TYPE_ENUM_END", """""")
+
 # HL_FAILURE_FLAG
 enums["HL_FAILURE_FLAG"] = Enum()
 enums["HL_FAILURE_FLAG"].bitmask = True
@@ -6546,30 +6564,36 @@ MAVLINK_MSG_ID_HEARTBEAT = 0
 class MAVLink_fdir_estimate_message(MAVLink_message):
     """
     One frame's fault estimate from an onboard FDIR (fault detection,
-    isolation and estimation) service. Fault channel i is the i-th
-    fault of the service's scenario file (fault_count valid entries;
-    ids are published in NAMED_VALUE_FLOAT names f_ID, pf_ID, pfa_ID,
-    pmd_ID). Units: SI (m, m/s, rad, rad/s).
+    isolation and estimation) service. Channel i is the i-th monitored
+    item of the service's estimator file: a target (measurement row or
+    actuator) watched by one or more typed fault entries, named by the
+    id of its first entry, in order of first appearance (fault_count
+    valid channels; with one bias entry per target, channels are the
+    fault entries; entry ids are published in NAMED_VALUE_FLOAT names
+    f_ID, pf_ID, pfa_ID, pmd_ID). Per channel, fault, fault_std, pfa,
+    pmd, fault_type and fault_value are those of the item's most
+    probable entry; p_fault is P(item faulty). Units: SI (m, m/s, rad,
+    rad/s).
     """
 
     id = MAVLINK_MSG_ID_FDIR_ESTIMATE
     msgname = "FDIR_ESTIMATE"
-    fieldnames = ["time_boot_ms", "frame_seq", "fault_count", "declared", "flags", "mask", "state", "state_std", "fault", "fault_std", "p_fault", "pfa", "pmd", "n_eff"]
-    ordered_fieldnames = ["time_boot_ms", "frame_seq", "state", "state_std", "fault", "fault_std", "p_fault", "pfa", "pmd", "n_eff", "fault_count", "declared", "flags", "mask"]
-    fieldtypes = ["uint32_t", "uint32_t", "uint8_t", "uint8_t", "uint8_t", "uint8_t", "float", "float", "float", "float", "float", "float", "float", "float"]
+    fieldnames = ["time_boot_ms", "frame_seq", "fault_count", "declared", "flags", "mask", "state", "state_std", "fault", "fault_std", "p_fault", "pfa", "pmd", "n_eff", "fault_type", "fault_value"]
+    ordered_fieldnames = ["time_boot_ms", "frame_seq", "state", "state_std", "fault", "fault_std", "p_fault", "pfa", "pmd", "n_eff", "fault_count", "declared", "flags", "mask", "fault_type", "fault_value"]
+    fieldtypes = ["uint32_t", "uint32_t", "uint8_t", "uint8_t", "uint8_t", "uint8_t", "float", "float", "float", "float", "float", "float", "float", "float", "uint8_t", "float"]
     fielddisplays_by_name: Dict[str, str] = {"declared": "bitmask", "flags": "bitmask", "mask": "bitmask"}
     fieldenums_by_name: Dict[str, str] = {"flags": "FDIR_ESTIMATE_FLAGS"}
     fieldunits_by_name: Dict[str, str] = {"time_boot_ms": "ms"}
-    native_format = bytearray(b"<IIffffffffBBBB")
-    orders = [0, 1, 10, 11, 12, 13, 2, 3, 4, 5, 6, 7, 8, 9]
-    lengths = [1, 1, 5, 5, 8, 8, 8, 8, 8, 1, 1, 1, 1, 1]
-    array_lengths = [0, 0, 5, 5, 8, 8, 8, 8, 8, 0, 0, 0, 0, 0]
+    native_format = bytearray(b"<IIffffffffBBBBBf")
+    orders = [0, 1, 10, 11, 12, 13, 2, 3, 4, 5, 6, 7, 8, 9, 14, 15]
+    lengths = [1, 1, 5, 5, 8, 8, 8, 8, 8, 1, 1, 1, 1, 1, 4, 8]
+    array_lengths = [0, 0, 5, 5, 8, 8, 8, 8, 8, 0, 0, 0, 0, 0, 4, 8]
     crc_extra = 201
-    unpacker = struct.Struct("<II5f5f8f8f8f8f8ffBBBB")
+    unpacker = struct.Struct("<II5f5f8f8f8f8f8ffBBBB4B8f")
     instance_field = None
     instance_offset = -1
 
-    def __init__(self, time_boot_ms: int, frame_seq: int, fault_count: int, declared: int, flags: int, mask: int, state: Sequence[float], state_std: Sequence[float], fault: Sequence[float], fault_std: Sequence[float], p_fault: Sequence[float], pfa: Sequence[float], pmd: Sequence[float], n_eff: float):
+    def __init__(self, time_boot_ms: int, frame_seq: int, fault_count: int, declared: int, flags: int, mask: int, state: Sequence[float], state_std: Sequence[float], fault: Sequence[float], fault_std: Sequence[float], p_fault: Sequence[float], pfa: Sequence[float], pmd: Sequence[float], n_eff: float, fault_type: Sequence[int] = (0, 0, 0, 0), fault_value: Sequence[float] = (0, 0, 0, 0, 0, 0, 0, 0)):
         MAVLink_message.__init__(self, MAVLink_fdir_estimate_message.id, MAVLink_fdir_estimate_message.msgname)
         self._fieldnames = MAVLink_fdir_estimate_message.fieldnames
         self._instance_field = MAVLink_fdir_estimate_message.instance_field
@@ -6588,9 +6612,11 @@ class MAVLink_fdir_estimate_message(MAVLink_message):
         self.pfa = pfa
         self.pmd = pmd
         self.n_eff = n_eff
+        self.fault_type = fault_type
+        self.fault_value = fault_value
 
     def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
-        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_boot_ms, self.frame_seq, self.state[0], self.state[1], self.state[2], self.state[3], self.state[4], self.state_std[0], self.state_std[1], self.state_std[2], self.state_std[3], self.state_std[4], self.fault[0], self.fault[1], self.fault[2], self.fault[3], self.fault[4], self.fault[5], self.fault[6], self.fault[7], self.fault_std[0], self.fault_std[1], self.fault_std[2], self.fault_std[3], self.fault_std[4], self.fault_std[5], self.fault_std[6], self.fault_std[7], self.p_fault[0], self.p_fault[1], self.p_fault[2], self.p_fault[3], self.p_fault[4], self.p_fault[5], self.p_fault[6], self.p_fault[7], self.pfa[0], self.pfa[1], self.pfa[2], self.pfa[3], self.pfa[4], self.pfa[5], self.pfa[6], self.pfa[7], self.pmd[0], self.pmd[1], self.pmd[2], self.pmd[3], self.pmd[4], self.pmd[5], self.pmd[6], self.pmd[7], self.n_eff, self.fault_count, self.declared, self.flags, self.mask), force_mavlink1=force_mavlink1)
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_boot_ms, self.frame_seq, self.state[0], self.state[1], self.state[2], self.state[3], self.state[4], self.state_std[0], self.state_std[1], self.state_std[2], self.state_std[3], self.state_std[4], self.fault[0], self.fault[1], self.fault[2], self.fault[3], self.fault[4], self.fault[5], self.fault[6], self.fault[7], self.fault_std[0], self.fault_std[1], self.fault_std[2], self.fault_std[3], self.fault_std[4], self.fault_std[5], self.fault_std[6], self.fault_std[7], self.p_fault[0], self.p_fault[1], self.p_fault[2], self.p_fault[3], self.p_fault[4], self.p_fault[5], self.p_fault[6], self.p_fault[7], self.pfa[0], self.pfa[1], self.pfa[2], self.pfa[3], self.pfa[4], self.pfa[5], self.pfa[6], self.pfa[7], self.pmd[0], self.pmd[1], self.pmd[2], self.pmd[3], self.pmd[4], self.pmd[5], self.pmd[6], self.pmd[7], self.n_eff, self.fault_count, self.declared, self.flags, self.mask, self.fault_type[0], self.fault_type[1], self.fault_type[2], self.fault_type[3], self.fault_value[0], self.fault_value[1], self.fault_value[2], self.fault_value[3], self.fault_value[4], self.fault_value[5], self.fault_value[6], self.fault_value[7]), force_mavlink1=force_mavlink1)
 
 
 # Define name on the class for backwards compatibility (it is now msgname).
@@ -17278,13 +17304,19 @@ class MAVLink(object):
         m._header = MAVLink_header(msgId, incompat_flags, compat_flags, mlen, seq, srcSystem, srcComponent)
         return m
 
-    def fdir_estimate_encode(self, time_boot_ms: int, frame_seq: int, fault_count: int, declared: int, flags: int, mask: int, state: Sequence[float], state_std: Sequence[float], fault: Sequence[float], fault_std: Sequence[float], p_fault: Sequence[float], pfa: Sequence[float], pmd: Sequence[float], n_eff: float) -> MAVLink_fdir_estimate_message:
+    def fdir_estimate_encode(self, time_boot_ms: int, frame_seq: int, fault_count: int, declared: int, flags: int, mask: int, state: Sequence[float], state_std: Sequence[float], fault: Sequence[float], fault_std: Sequence[float], p_fault: Sequence[float], pfa: Sequence[float], pmd: Sequence[float], n_eff: float, fault_type: Sequence[int] = (0, 0, 0, 0), fault_value: Sequence[float] = (0, 0, 0, 0, 0, 0, 0, 0)) -> MAVLink_fdir_estimate_message:
         """
         One frame's fault estimate from an onboard FDIR (fault detection,
-        isolation and estimation) service. Fault channel i is the i-th
-        fault of the service's scenario file (fault_count valid
-        entries; ids are published in NAMED_VALUE_FLOAT names f_ID,
-        pf_ID, pfa_ID, pmd_ID). Units: SI (m, m/s, rad, rad/s).
+        isolation and estimation) service. Channel i is the i-th
+        monitored item of the service's estimator file: a target
+        (measurement row or actuator) watched by one or more typed
+        fault entries, named by the id of its first entry, in order of
+        first appearance (fault_count valid channels; with one bias
+        entry per target, channels are the fault entries; entry ids
+        are published in NAMED_VALUE_FLOAT names f_ID, pf_ID, pfa_ID,
+        pmd_ID). Per channel, fault, fault_std, pfa, pmd, fault_type
+        and fault_value are those of the item's most probable entry;
+        p_fault is P(item faulty). Units: SI (m, m/s, rad, rad/s).
 
         time_boot_ms              : Autopilot timestamp of the frame this estimate describes (time since autopilot boot). [ms] (type:uint32_t)
         frame_seq                 : Frames stepped by the filter since the service started. (type:uint32_t)
@@ -17300,17 +17332,25 @@ class MAVLink(object):
         pfa                       : False-alarm probability per channel (adaptive filters; NaN otherwise). (type:float)
         pmd                       : Missed-detection probability per channel (adaptive filters; NaN otherwise). (type:float)
         n_eff                     : Effective sample size of the particle filter (N for Kalman-type filters). (type:float)
+        fault_type                : Most probable fault type (FDIR_FAULT_TYPE) per channel, two channels per byte: channel i in bits 4*(i%2)..4*(i%2)+3 of byte i/2 (low nibble = even channel). Packed because MAVLink 2 payloads end at 255 bytes (uint8_t[8] would make 256). All BIAS (and absent on the wire) when every channel is a single bias entry. (type:uint8_t)
+        fault_value               : User-facing value per channel, by fault_type: BIAS the offset (= fault), STUCK the held reading, JAMMED the held position (SI); NOISY the noise multiplier k, EFFECTIVENESS the remaining gain g (unitless); NaN for unused channels. All 0 (absent on the wire) when every channel is a single bias entry: read fault. (type:float)
 
         """
-        return MAVLink_fdir_estimate_message(time_boot_ms, frame_seq, fault_count, declared, flags, mask, state, state_std, fault, fault_std, p_fault, pfa, pmd, n_eff)
+        return MAVLink_fdir_estimate_message(time_boot_ms, frame_seq, fault_count, declared, flags, mask, state, state_std, fault, fault_std, p_fault, pfa, pmd, n_eff, fault_type, fault_value)
 
-    def fdir_estimate_send(self, time_boot_ms: int, frame_seq: int, fault_count: int, declared: int, flags: int, mask: int, state: Sequence[float], state_std: Sequence[float], fault: Sequence[float], fault_std: Sequence[float], p_fault: Sequence[float], pfa: Sequence[float], pmd: Sequence[float], n_eff: float, force_mavlink1: bool = False) -> None:
+    def fdir_estimate_send(self, time_boot_ms: int, frame_seq: int, fault_count: int, declared: int, flags: int, mask: int, state: Sequence[float], state_std: Sequence[float], fault: Sequence[float], fault_std: Sequence[float], p_fault: Sequence[float], pfa: Sequence[float], pmd: Sequence[float], n_eff: float, fault_type: Sequence[int] = (0, 0, 0, 0), fault_value: Sequence[float] = (0, 0, 0, 0, 0, 0, 0, 0), force_mavlink1: bool = False) -> None:
         """
         One frame's fault estimate from an onboard FDIR (fault detection,
-        isolation and estimation) service. Fault channel i is the i-th
-        fault of the service's scenario file (fault_count valid
-        entries; ids are published in NAMED_VALUE_FLOAT names f_ID,
-        pf_ID, pfa_ID, pmd_ID). Units: SI (m, m/s, rad, rad/s).
+        isolation and estimation) service. Channel i is the i-th
+        monitored item of the service's estimator file: a target
+        (measurement row or actuator) watched by one or more typed
+        fault entries, named by the id of its first entry, in order of
+        first appearance (fault_count valid channels; with one bias
+        entry per target, channels are the fault entries; entry ids
+        are published in NAMED_VALUE_FLOAT names f_ID, pf_ID, pfa_ID,
+        pmd_ID). Per channel, fault, fault_std, pfa, pmd, fault_type
+        and fault_value are those of the item's most probable entry;
+        p_fault is P(item faulty). Units: SI (m, m/s, rad, rad/s).
 
         time_boot_ms              : Autopilot timestamp of the frame this estimate describes (time since autopilot boot). [ms] (type:uint32_t)
         frame_seq                 : Frames stepped by the filter since the service started. (type:uint32_t)
@@ -17326,9 +17366,11 @@ class MAVLink(object):
         pfa                       : False-alarm probability per channel (adaptive filters; NaN otherwise). (type:float)
         pmd                       : Missed-detection probability per channel (adaptive filters; NaN otherwise). (type:float)
         n_eff                     : Effective sample size of the particle filter (N for Kalman-type filters). (type:float)
+        fault_type                : Most probable fault type (FDIR_FAULT_TYPE) per channel, two channels per byte: channel i in bits 4*(i%2)..4*(i%2)+3 of byte i/2 (low nibble = even channel). Packed because MAVLink 2 payloads end at 255 bytes (uint8_t[8] would make 256). All BIAS (and absent on the wire) when every channel is a single bias entry. (type:uint8_t)
+        fault_value               : User-facing value per channel, by fault_type: BIAS the offset (= fault), STUCK the held reading, JAMMED the held position (SI); NOISY the noise multiplier k, EFFECTIVENESS the remaining gain g (unitless); NaN for unused channels. All 0 (absent on the wire) when every channel is a single bias entry: read fault. (type:float)
 
         """
-        self.send(self.fdir_estimate_encode(time_boot_ms, frame_seq, fault_count, declared, flags, mask, state, state_std, fault, fault_std, p_fault, pfa, pmd, n_eff), force_mavlink1=force_mavlink1)
+        self.send(self.fdir_estimate_encode(time_boot_ms, frame_seq, fault_count, declared, flags, mask, state, state_std, fault, fault_std, p_fault, pfa, pmd, n_eff, fault_type, fault_value), force_mavlink1=force_mavlink1)
 
     def sys_status_encode(self, onboard_control_sensors_present: int, onboard_control_sensors_enabled: int, onboard_control_sensors_health: int, load: int, voltage_battery: int, current_battery: int, battery_remaining: int, drop_rate_comm: int, errors_comm: int, errors_count1: int, errors_count2: int, errors_count3: int, errors_count4: int, onboard_control_sensors_present_extended: int = 0, onboard_control_sensors_enabled_extended: int = 0, onboard_control_sensors_health_extended: int = 0) -> MAVLink_sys_status_message:
         """

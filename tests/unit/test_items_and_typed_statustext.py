@@ -1,0 +1,150 @@
+"""Monitored items (issue 17): entries grouped by target, P(item faulty) by noisy-OR, the most
+probable type and its value; STATUSTEXT in words per type; per-item hysteresis whose declaration
+carries the type and whose type changes are announced."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from fdir_service.estimation.base import StepOutput
+from fdir_service.estimator_config import FaultSpec
+from fdir_service.mavlink import dialect, new_mavlink, pack_fault_types, unpack_fault_types
+from fdir_service.runtime.events import FaultCleared, FaultDeclared, FaultTypeChanged
+from fdir_service.runtime.frames import AssembledFrame
+from fdir_service.runtime.items import (
+    combine_probability,
+    entry_types,
+    is_plain,
+    item_frame,
+    item_layout,
+)
+from fdir_service.runtime.publishing import Publisher, statustext_for
+from tests.helpers.experiments import ch4_service
+
+DEG = math.pi / 180.0
+CFG = ch4_service()
+
+
+def spec(fid: str, target: str, unit: str, fault_type: str = "bias") -> FaultSpec:
+    kind = "actuator" if target in ("delta_e", "delta_t") else "sensor"
+    return FaultSpec(fid, target, kind, unit, 0.01, fault_type=fault_type)
+
+
+FAULTS = (spec("gnss", "gnss_alt", "m"), spec("q", "q", "deg/s"), spec("baro", "baro_alt", "m", "noisy"),
+          spec("q_stk", "q", "deg/s", "stuck"), spec("de", "delta_e", "deg", "jammed"),
+          spec("dt", "delta_t", "1", "effectiveness"))
+
+
+def step(p, value=None, estimate=None, types=()) -> StepOutput:
+    nf = len(p)
+    est = np.zeros(nf) if estimate is None else np.asarray(estimate, dtype=float)
+    return StepOutput(0.0, np.zeros(5 + nf), np.eye(5 + nf), tuple(f.id for f in FAULTS[:nf]), est,
+                      np.asarray(p, dtype=float), 500.0, False, fault_types=types,
+                      fault_value=None if value is None else np.asarray(value, dtype=float))
+
+
+def test_items_group_entries_by_target_named_by_their_first_entry():
+    lay = item_layout(FAULTS)
+    assert lay.names == ("gnss", "q", "baro", "de", "dt")
+    assert lay.targets == ("gnss_alt", "q", "baro_alt", "delta_e", "delta_t")
+    assert lay.entries == ((0,), (1, 3), (2,), (4,), (5,))
+    assert entry_types(FAULTS) == ("bias", "bias", "noisy", "stuck", "jammed", "effectiveness")
+    assert not is_plain(lay, entry_types(FAULTS))
+    plain = item_layout(FAULTS[:2])
+    assert is_plain(plain, entry_types(FAULTS[:2])) and plain.entries == ((0,), (1,))
+
+
+def test_item_probability_is_noisy_or_and_a_single_entry_is_unchanged_bit_for_bit():
+    assert combine_probability(np.array([0.6, 0.6])) == pytest.approx(0.84)
+    assert combine_probability(np.array([0.97, 0.0])) == pytest.approx(0.97)
+    assert combine_probability(np.array([0.1])) == 0.1            # 1 - (1 - 0.1) would be 0.0999...
+    assert combine_probability(np.array([0.01, 0.01, 0.01])) == pytest.approx(0.029701)
+
+
+def test_item_frame_picks_the_most_probable_entry_its_type_and_value():
+    p = [0.02, 0.30, 0.93, 0.97, 0.95, 0.99]
+    v = [1.0, 0.5 * DEG, 4.1, 3.2 * DEG, -3.1 * DEG, 0.0]
+    view = item_frame(item_layout(FAULTS), step(p, v), entry_types(FAULTS))
+    assert view.types == ("bias", "stuck", "noisy", "jammed", "effectiveness")
+    assert view.entry.tolist() == [0, 3, 2, 4, 5]
+    assert view.p.tolist() == pytest.approx([0.02, 1 - 0.7 * 0.03, 0.93, 0.95, 0.99])
+    assert view.value.tolist() == pytest.approx([1.0, 3.2 * DEG, 4.1, -3.1 * DEG, 0.0])
+    # the bias entry wins when it is the more probable one; value falls back to the estimate
+    view = item_frame(item_layout(FAULTS), step([0, 0.8, 0, 0.1, 0, 0], estimate=[0, 2 * DEG, 0, 0, 0, 0]),
+                      entry_types(FAULTS))
+    assert view.types[1] == "bias" and view.value[1] == pytest.approx(2 * DEG)
+
+
+@pytest.mark.parametrize("j, fault_type, value, text", [
+    (3, "stuck", 3.2 * DEG, "FDIR q stuck at 3.2 deg/s p=0.97"),
+    (4, "jammed", -3.1 * DEG, "FDIR de jammed at -3.1 deg p=0.97"),
+    (2, "noisy", 4.1, "FDIR baro noisy x4.1 p=0.97"),
+    (5, "effectiveness", 0.0, "FDIR dt effectiveness 0% p=0.97"),
+    (5, "effectiveness", -0.004, "FDIR dt effectiveness 0% p=0.97"),
+    (5, "effectiveness", 0.456, "FDIR dt effectiveness 46% p=0.97"),
+    (0, "bias", 50.1, "FDIR gnss fault +50.1 m p=0.97"),
+])
+def test_statustext_in_words(j, fault_type, value, text):
+    name = {3: "q"}.get(j)
+    assert statustext_for(FAULTS[j], value, 0.97, True, fault_type, name) == text
+    assert statustext_for(FAULTS[j], value, 0.03, False, fault_type, name).endswith("cleared p=0.03")
+
+
+def frame(k: int) -> AssembledFrame:
+    return AssembledFrame(k, 50_000 * k, np.zeros(6), np.ones(6, dtype=bool), np.zeros(2))
+
+
+def test_item_hysteresis_declares_with_the_type_and_announces_a_type_change():
+    pub = Publisher(CFG.publish, FAULTS[:4], new_mavlink(1, 191), adaptive=False)   # hold 0.2 s
+    stuck = step([0.0, 0.1, 0.0, 0.97], value=[0, 0, 0, 3.2 * DEG])
+    bias = step([0.0, 0.98, 0.0, 0.05], estimate=[0, 2.5 * DEG, 0, 0])
+    events, texts = [], []
+    for k, out in enumerate([stuck] * 5 + [bias] * 3 + [bias] * 2 + [step([0.0] * 4)] * 25):
+        msgs, ev = pub.publish(frame(200 + k), out)
+        events += ev
+        texts += [m.text for m in new_mavlink(255, 0).parse_buffer(b"".join(msgs)) or []
+                  if m.get_type() == "STATUSTEXT"]
+    p_q = 1 - 0.9 * 0.03
+    assert events[0] == FaultDeclared("q", 10.2, pytest.approx(p_q), pytest.approx(3.2 * DEG),
+                                      f"FDIR q stuck at 3.2 deg/s p={p_q:.2f}", "stuck")
+    changed = "FDIR q fault +2.5 deg/s p=0.98 (was stuck)"
+    assert events[1] == FaultTypeChanged("q", pytest.approx(10.45), pytest.approx(1 - 0.02 * 0.95),
+                                         pytest.approx(2.5 * DEG), changed, "bias", "stuck")
+    assert isinstance(events[2], FaultCleared) and events[2].fault_id == "q" and len(events) == 3
+    assert texts == [e.statustext for e in events]
+    assert pub.hyst[1].fault_type == "bias"
+
+
+def test_a_type_flicker_shorter_than_the_hold_is_not_announced():
+    pub = Publisher(CFG.publish, FAULTS[:4], new_mavlink(1, 191), adaptive=False)
+    stuck = step([0.0, 0.1, 0.0, 0.97])
+    bias = step([0.0, 0.98, 0.0, 0.05])
+    seq = [stuck] * 5 + ([bias] * 3 + [stuck] * 2) * 4
+    events = [e for k, o in enumerate(seq) for e in pub.publish(frame(k), o)[1]]
+    assert [type(e) for e in events] == [FaultDeclared]
+
+
+def test_estimate_channels_are_items_with_type_and_value_extensions():
+    pub = Publisher(CFG.publish, FAULTS, new_mavlink(1, 191), adaptive=False)
+    out = step([0.02, 0.30, 0.93, 0.97, 0.95, 0.99], value=[1.0, 0.5 * DEG, 4.1, 3.2 * DEG, -3.1 * DEG, 0.0],
+               estimate=[1.0, 0.5 * DEG, 3.1, -0.2, -0.01, -1.0])
+    msg = pub.estimate_message(frame(1), out)
+    assert msg.fault_count == 5
+    assert unpack_fault_types(msg.fault_type)[:6] == [
+        dialect.FDIR_FAULT_TYPE_BIAS, dialect.FDIR_FAULT_TYPE_STUCK, dialect.FDIR_FAULT_TYPE_NOISY,
+        dialect.FDIR_FAULT_TYPE_JAMMED, dialect.FDIR_FAULT_TYPE_EFFECTIVENESS, 0]
+    assert list(msg.fault_type) == [0x10, 0x32, 0x04, 0x00]   # two channels per byte, low nibble first
+    assert msg.fault_value[:5] == pytest.approx([1.0, 3.2 * DEG, 4.1, -3.1 * DEG, 0.0])
+    assert msg.fault[:5] == pytest.approx([1.0, -0.2, 3.1, -0.01, -1.0])   # the chosen entry's state
+    assert msg.p_fault[1] == pytest.approx(1 - 0.7 * 0.03) and math.isnan(msg.fault_value[5])
+
+
+def test_fault_types_pack_two_per_byte_and_unpack_from_short_or_missing_fields():
+    codes = [1, 2, 3, 4, 5, 0, 1, 2]
+    assert pack_fault_types(codes) == [0x21, 0x43, 0x05, 0x21]
+    assert unpack_fault_types(pack_fault_types(codes)) == codes
+    assert unpack_fault_types([0x21]) == [1, 2, 0, 0, 0, 0, 0, 0]
+    assert unpack_fault_types(None) == [0] * 8
