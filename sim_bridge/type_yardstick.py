@@ -105,6 +105,17 @@ def item_type_matches(entries: Sequence[Kind], world: Sequence[Kind]) -> list[li
             for w in world]
 
 
+def truth_columns(entries: Sequence[Any], channels: Sequence[Any]) -> list[int | None]:
+    """Per monitored entry (FaultSpec, nf), the world channel (FaultChannel, index into nw) whose
+    value is its truth: the channel of the same id in a bias-only world, else the first channel it
+    rightly answers (same item, matching type); None: the world injects none."""
+    if not is_typed(channels):
+        ids = [c.id for c in channels]
+        return [ids.index(e.id) if e.id in ids else None for e in entries]
+    right = item_type_matches([kind_of(e) for e in entries], [kind_of(c) for c in channels])
+    return [next((w for w, r in enumerate(right) if j in r), None) for j in range(len(entries))]
+
+
 def component_active(comp: ProfileComponent, t: np.ndarray) -> np.ndarray:
     """(K,) bool: where one profile component acts at times t (K,) s: [start_s, end_s), and for an
     intermittent one only its on phases (edges as `sim_bridge.faults.component_value`)."""

@@ -20,6 +20,7 @@ from sim_bridge.type_yardstick import (
     item_type_matches,
     pool_by_type,
     scenario_yardsticks,
+    truth_columns,
     typed_run,
     world_fault,
 )
@@ -171,3 +172,13 @@ def test_a_bias_only_world_has_no_per_type_section():
          "isolation": {}, "p_declare": 0.9}
     assert by_type_markdown([("RJMRPF", y)]) == [] and by_type_lines(y) == []
     assert "Per fault type" not in "\n".join(yardstick_markdown({"filters": {"RJMRPF": {"yardstick": y}}}))
+
+
+def test_the_estimators_truth_comes_by_id_in_a_bias_world_and_by_item_and_type_in_a_typed_one():
+    est = _scenario().estimator.faults                         # baro, baro_st, baro_nz, theta, as_st
+    bias = [SimpleNamespace(id="theta", target="theta"), SimpleNamespace(id="gnss", target="gnss_alt")]
+    assert truth_columns(est, bias) == [None, None, None, 0, None]
+    typed = [SimpleNamespace(id="th", target="theta", fault_type="bias"),
+             SimpleNamespace(id="pitot", target="airspeed", fault_type="blocked"),
+             SimpleNamespace(id="b", target="baro_alt", fault_type="stuck")]
+    assert truth_columns(est, typed) == [None, 2, None, 0, 1]
