@@ -25,6 +25,7 @@ from sim_bridge.metrics import (
     table_columns,
 )
 from sim_bridge.scenario import Scenario
+from sim_bridge.type_yardstick import GOALS, MISSED, is_typed, scenario_yardsticks
 from sim_bridge.yardstick import GRACE_S, yardstick
 
 DEG = 180.0 / math.pi
@@ -185,8 +186,11 @@ def _yardstick(camp: Campaign, fr: FilterRuns) -> dict | None:
     if fr.world_faults is None:
         return None
     sc = camp.scenario
-    return yardstick(fr.t, fr.prob, [f.id for f in sc.estimator.faults], fr.world_faults,
-                     [f.id for f in sc.faults], world_active=fr.world_active)
+    ids, wids = [f.id for f in sc.estimator.faults], [f.id for f in sc.faults]
+    if not is_typed(sc.faults):                       # bias only: matched by id
+        return yardstick(fr.t, fr.prob, ids, fr.world_faults, wids, world_active=fr.world_active)
+    matching, by_type = scenario_yardsticks(sc, fr.t, fr.prob, fr.f_hat, fr.world_faults, fr.sim_seeds)
+    return {**yardstick(fr.t, fr.prob, ids, fr.world_faults, wids, **matching), "by_type": by_type}
 
 
 def check_orderings(results: dict[str, dict], orderings: tuple = ORDERINGS) -> list[dict]:
@@ -666,20 +670,82 @@ def yardstick_markdown(doc: dict) -> list[str]:
                  f"{_fmt(y['isolation_accuracy'], 2)} |")
     L.append("")
     for name, y in rows:
-        L += _confusion_markdown(name, y["isolation"])
-    return L
+        L += _confusion_markdown(f"Isolation, {name} (rows: injected; columns: first fault declared)",
+                                 "injected", y["isolation"], "none")
+    return L + by_type_markdown(rows)
 
 
-def _confusion_markdown(name: str, confusion: dict[str, dict[str, int]]) -> list[str]:
-    """One filter's isolation confusion table: injected fault -> first fault declared."""
+def _confusion_markdown(title: str, head: str, confusion: dict[str, dict[str, int]],
+                        none: str) -> list[str]:
+    """A confusion table: rows the injected faults, columns what was declared first (`none`: the
+    column of nothing declared, last)."""
     if not any(confusion.values()):
         return []
-    cols = sorted({c for row in confusion.values() for c in row} - {"none"}) + ["none"]
-    L = [f"Isolation, {name} (rows: injected; columns: first fault declared)", "",
-         "| injected | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]
+    cols = sorted({c for row in confusion.values() for c in row} - {none}) + [none]
+    L = [title, "", f"| {head} | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]
     for wid, row in confusion.items():
         L.append(f"| {wid} | " + " | ".join(str(row.get(c, 0)) for c in cols) + " |")
     return L + [""]
+
+
+def _goal(v: float | None, goal: float, at_least: bool, unit: str = "") -> str:
+    """A figure (2 digits, then unit) with whether it meets its goal (at least / at most `goal`)."""
+    if v is None:
+        return _fmt(v)
+    return f"{_fmt(v, 2)}{unit} ({'met' if (v >= goal if at_least else v <= goal) else 'missed'})"
+
+
+def _goal_cells(r: dict, delay_unit: str = "") -> tuple[str, str, str]:
+    """A type row's detection fraction, median delay and right item-and-type fraction, each with
+    whether it meets the issue's goal (`GOALS`)."""
+    return (_goal(r["detection_fraction"], GOALS["detection_fraction"], True),
+            _goal(r["delay_s"]["median"], GOALS["delay_median_s"], False, delay_unit),
+            _goal(r["right_fraction"], GOALS["right_fraction"], True))
+
+
+def _type_line(name: str, ty: str, r: dict) -> str:
+    """One row of the per-fault-type table."""
+    mag = ", ".join(f"{_fmt(v)} {u}" for u, v in r["magnitude_rmse"].items()) or _fmt(None)
+    det, delay, right = _goal_cells(r)
+    return (f"| {name} | {ty} | {r['episodes']} | {det} | {delay} | {_fmt(r['delay_s']['p90'], 2)} | "
+            f"{right} | {_fmt(r['right_item_fraction'], 2)} | {mag} |")
+
+
+def by_type_lines(y: dict | None) -> list[str]:
+    """What `sim-bridge experiment` prints per world fault type of a typed world's yardstick y
+    (one line each, the goals beside the figures); [] for a bias-only world."""
+    if not y or not y.get("by_type"):
+        return []
+    return [f"{ty}: detected {det} of {r['episodes']}, median delay {delay}, right item and type {right}"
+            for ty, r in y["by_type"]["types"].items() for det, delay, right in (_goal_cells(r, " s"),)]
+
+
+def by_type_markdown(rows: list[tuple[str, dict]]) -> list[str]:
+    """The per-fault-type table and each filter's (item, type) confusion table, for a world with
+    typed faults (yardstick "by_type"), the issue's goals beside the figures; [] for a bias-only
+    world. rows: (filter, its yardstick)."""
+    typed = [(n, y) for n, y in rows if y.get("by_type")]
+    if not typed:
+        return []
+    L = ["## Per fault type", "",
+         "Each injected episode matched to the monitored entries by item and type (definitions in "
+         "sim_bridge/type_yardstick.py): detected when an entry of its item is declared; right when "
+         "the first entry declared is its item and type; magnitude RMSE of the right entry's estimate "
+         "over the active frames, in the fault's unit (- : unitless k - 1, g - 1). False alarms per "
+         "flight hour with every type enabled (goal <= "
+         f"{GOALS['false_alarms_per_hour']:g}): "
+         + ", ".join(f"{n} {_goal(y['false_alarms_per_hour'], GOALS['false_alarms_per_hour'], False)}"
+                     for n, y in typed) + ".", "",
+         f"| filter | type | episodes | detected (goal >= {GOALS['detection_fraction']:.0%}) | "
+         f"median delay s (goal <= {GOALS['delay_median_s']:g} s) | p90 delay s | "
+         f"right item and type (goal >= {GOALS['right_fraction']:.0%}) | right item | magnitude RMSE |",
+         "|---|---|---|---|---|---|---|---|---|"]
+    L += [_type_line(n, ty, r) for n, y in typed for ty, r in y["by_type"]["types"].items()]
+    L.append("")
+    for n, y in typed:
+        L += _confusion_markdown(f"Isolation by item and type, {n} (rows: injected item:type; columns: "
+                                 "first entry declared)", "injected", y["by_type"]["confusion"], MISSED)
+    return L
 
 
 def roc_figure(doc: dict, out: Path, prefix: str = "") -> list[str]:

@@ -181,13 +181,15 @@ class Scenario:
         return np.array([world.index(r) if r in world else -1 for r in self.estimator.measurements])
 
     def estimator_fault_truth(self, world_faults: np.ndarray) -> np.ndarray:
-        """The world's true faults (..., nf_world) as the estimator's faults (..., nf_est), by id;
-        0 for a monitored fault the world does not inject."""
-        ids = [f.id for f in self.faults]
+        """The world's true faults (..., nf_world) as the estimator's faults (..., nf_est), by id (in
+        a world of typed faults by item and type: `type_yardstick.truth_columns`); 0 for a
+        monitored fault the world does not inject."""
+        from sim_bridge.type_yardstick import truth_columns
+
         out = np.zeros(world_faults.shape[:-1] + (len(self.estimator.faults),), dtype=world_faults.dtype)
-        for j, f in enumerate(self.estimator.faults):
-            if f.id in ids:
-                out[..., j] = world_faults[..., ids.index(f.id)]
+        for j, w in enumerate(truth_columns(self.estimator.faults, self.faults)):
+            if w is not None:
+                out[..., j] = world_faults[..., w]
         return out
 
 

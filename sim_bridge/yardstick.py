@@ -9,10 +9,12 @@ clears it when P <= p_clear for clear_hold_s (`[publish.declare]` of the service
   there, or one that started during an injected fault (of another item, say) and still stands
   when the fault-free time begins; false alarms per flight hour is their ratio over all runs, and
   the **falsely declared fraction** the share of fault-free time with any fault declared;
-- an injected fault episode is **detected** when the monitored fault of the same id is declared at
+- an injected fault episode is **detected** when a monitored fault that answers it is declared at
   some frame from its onset to GRACE_S after its end; its **delay** is from the onset to that
-  frame (0 if it was declared already);
-- **isolation**: the injected fault's own id when it was detected, else the first other monitored
+  frame (0 if it was declared already). The answer is the monitored fault of the same id
+  (`id_matches`, bias-only worlds) or, in a world of typed faults, every entry of the same item
+  and type (`sim_bridge.type_yardstick.item_type_matches`);
+- **isolation**: the answering fault when it was detected, else the first other monitored
   fault whose declaration starts in that window, else "none": a confusion table injected id ->
   declared id (a fault declared already, for another reason, is no answer to this one);
 - the **ROC**: false alarms per hour and detection fraction over a grid of p_declare.
@@ -110,30 +112,51 @@ def quiet_mask(t: np.ndarray, world_active: np.ndarray) -> np.ndarray:
     return quiet
 
 
-def _window(t: np.ndarray, s: int, e: int) -> slice:
+def episode_window(t: np.ndarray, s: int, e: int) -> slice:
     """The frames from onset s to GRACE_S after the episode's last frame e - 1."""
     return slice(s, int(np.searchsorted(t, t[e - 1] + GRACE_S, side="right")))
 
 
+def declarations(t: np.ndarray, prob: np.ndarray, rule: Hysteresis) -> np.ndarray:
+    """(K, nf) bool: each monitored fault's declaration (`declared`) from its P series prob (K, nf)."""
+    if not prob.shape[1]:
+        return np.zeros((t.size, 0), bool)
+    return np.stack([declared(t, prob[:, j], rule) for j in range(prob.shape[1])], axis=1)
+
+
+def world_activity(world_faults: np.ndarray, world_active: np.ndarray | None = None) -> np.ndarray:
+    """(K, nw) bool: where each injected fault is active: world_active when given (from the
+    profiles' intervals: a typed fault's value may be ~0 while active), else its value non-zero."""
+    if world_active is not None:
+        return np.asarray(world_active, bool)
+    return np.nan_to_num(world_faults) != 0.0
+
+
+def id_matches(fault_ids: list[str], world_ids: list[str]) -> list[list[int]]:
+    """Per world fault, the monitored faults (indices into fault_ids) that are its right answer:
+    the one of the same id (bias-only worlds), none if unmonitored."""
+    return [[fault_ids.index(w)] if w in fault_ids else [] for w in world_ids]
+
+
 def run_yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_faults: np.ndarray,
-                  world_ids: list[str], rule: Hysteresis, world_active: np.ndarray | None = None) -> dict:
+                  world_ids: list[str], rule: Hysteresis, right: list[list[int]] | None = None,
+                  world_active: np.ndarray | None = None) -> dict:
     """One run: prob (K, nf) P(fault) of the monitored faults fault_ids; world_faults (K, nw) the
-    world's injected faults (0 where inactive); world_active (K, nw) bool their activity (None:
-    value != 0; a typed fault can be active at value 0, `fault_types`). Returns counts to pool
-    over runs (see `pool`)."""
-    dec = np.stack([declared(t, prob[:, j], rule) for j in range(prob.shape[1])], axis=1) \
-        if prob.shape[1] else np.zeros((t.size, 0), bool)
-    each = (np.nan_to_num(world_faults) != 0.0) if world_active is None else np.asarray(world_active, bool)
-    world_active = each.any(axis=1) if world_faults.size else np.zeros(t.size, bool)
-    quiet = quiet_mask(t, world_active)
+    world's injected faults (0 where inactive); right: per world fault, the indices of the monitored
+    faults that answer it (default `id_matches`); world_active (K, nw) bool: activity, default
+    world_faults != 0. Returns counts to pool over runs (see `pool`)."""
+    dec = declarations(t, prob, rule)
+    act = world_activity(world_faults, world_active) if world_faults.size else np.zeros((t.size, 0), bool)
+    quiet = quiet_mask(t, act.any(axis=1))
     false_dec = dec & quiet[:, None]
     false_alarms = sum(int(_onsets(false_dec[:, j]).size) for j in range(dec.shape[1]))
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     out = {"false_alarms": false_alarms, "fault_free_s": float(quiet.sum() * dt),
            "false_declared_s": float(false_dec.any(axis=1).sum() * dt), "episodes": []}
+    right = id_matches(fault_ids, world_ids) if right is None else right
     for w, wid in enumerate(world_ids):
-        for s, e in episodes(each[:, w]):
-            out["episodes"].append(_episode(t, dec, fault_ids, wid, s, e))
+        for s, e in episodes(act[:, w]):
+            out["episodes"].append(_episode(t, dec, fault_ids, wid, right[w], s, e))
     return out
 
 
@@ -143,17 +166,49 @@ def _declarations_in(series: np.ndarray, win: slice) -> np.ndarray:
     return on[(on >= win.start) & (on < win.stop)] - win.start
 
 
-def _episode(t: np.ndarray, dec: np.ndarray, fault_ids: list[str], wid: str, s: int, e: int) -> dict:
-    """Detection and isolation of one injected episode [s, e) of world fault wid."""
-    win = _window(t, s, e)
-    own = fault_ids.index(wid) if wid in fault_ids else None
-    hit = np.flatnonzero(dec[win, own]) if own is not None else np.array([], int)
-    if hit.size:
-        return {"id": wid, "detected": True, "delay_s": float(t[s + hit[0]] - t[s]), "isolated_as": wid}
-    starts = [(int(k[0]), fid) for j, fid in enumerate(fault_ids)
+def first_standing(dec: np.ndarray, win: slice, cols: list[int]) -> tuple[int, int] | None:
+    """(frame relative to win.start, fault index) of the first frame of window win at which one of
+    the faults cols stands declared in dec (K, nf) (ties: the lower index), or None."""
+    hits = [(int(h[0]), j) for j in cols for h in (np.flatnonzero(dec[win, j]),) if h.size]
+    return min(hits) if hits else None
+
+
+def first_declared(dec: np.ndarray, win: slice, own: list[int],
+                   names: list[str]) -> tuple[int, int] | None:
+    """(frame relative to win.start, fault index) of the first answer in window win of dec (K, nf):
+    a fault of `own` declared at any frame of the window (one standing already counts), any other
+    fault only by a declaration that starts inside it; ties go to `own`, then by the faults'
+    names (nf,). None: nothing declared."""
+    cands = [(int(h[0]), 0, names[j], j) for j in own for h in (np.flatnonzero(dec[win, j]),) if h.size]
+    cands += [(int(k[0]), 1, names[j], j) for j in range(dec.shape[1]) if j not in own
               for k in (_declarations_in(dec[:, j], win),) if k.size]
-    first = min(starts)[1] if starts else "none"
-    return {"id": wid, "detected": False, "delay_s": None, "isolated_as": first}
+    if not cands:
+        return None
+    k, _, _, j = min(cands)
+    return k, j
+
+
+def _episode(t: np.ndarray, dec: np.ndarray, fault_ids: list[str], wid: str, own: list[int],
+             s: int, e: int) -> dict:
+    """Detection and isolation of one injected episode [s, e) of world fault wid, answered by the
+    monitored faults `own` (indices into fault_ids)."""
+    win = episode_window(t, s, e)
+    hit = first_standing(dec, win, own)
+    if hit:
+        k, j = hit
+        return {"id": wid, "detected": True, "delay_s": float(t[s + k] - t[s]),
+                "isolated_as": fault_ids[j], "right": True}
+    first = first_declared(dec, win, [], fault_ids)
+    return {"id": wid, "detected": False, "delay_s": None,
+            "isolated_as": fault_ids[first[1]] if first else "none", "right": False}
+
+
+def delay_stats(delays: list[float]) -> dict:
+    """median, p90, max (s; None without delays) and n of detection delays (s)."""
+    def q(x: float) -> float | None:
+        return finite_or_none(np.percentile(delays, x)) if delays else None
+
+    return {"median": q(50), "p90": q(90), "max": q(100), "n": len(delays)}
 
 
 def pool(runs: list[dict], world_ids: list[str]) -> dict:
@@ -167,10 +222,7 @@ def pool(runs: list[dict], world_ids: list[str]) -> dict:
     for ep in eps:
         row = confusion.setdefault(ep["id"], {})
         row[ep["isolated_as"]] = row.get(ep["isolated_as"], 0) + 1
-    right = sum(1 for ep in eps if ep["isolated_as"] == ep["id"])
-
-    def q(x: float) -> float | None:
-        return finite_or_none(np.percentile(delays, x)) if delays else None
+    right = sum(1 for ep in eps if ep.get("right", ep["isolated_as"] == ep["id"]))
 
     return {
         "false_alarms": fa, "fault_free_hours": hours,
@@ -178,7 +230,7 @@ def pool(runs: list[dict], world_ids: list[str]) -> dict:
         "falsely_declared_fraction": (false_h / hours) if hours > 0 else None,
         "episodes": len(eps), "detected": len(delays),
         "detection_fraction": (len(delays) / len(eps)) if eps else None,
-        "delay_s": {"median": q(50), "p90": q(90), "max": q(100), "n": len(delays)},
+        "delay_s": delay_stats(delays),
         "isolation": confusion,
         "isolation_accuracy": (right / len(eps)) if eps else None,
     }
@@ -186,16 +238,16 @@ def pool(runs: list[dict], world_ids: list[str]) -> dict:
 
 def yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_faults: np.ndarray,
               world_ids: list[str], rule: Hysteresis | None = None,
-              thresholds: tuple[float, ...] = ROC_THRESHOLDS,
+              thresholds: tuple[float, ...] = ROC_THRESHOLDS, right: list[list[int]] | None = None,
               world_active: np.ndarray | None = None) -> dict:
-    """The yardstick of one filter over R runs: prob (R, K, nf), world_faults (R, K, nw), their
-    activity world_active (R, K, nw) bool or None (value != 0); a run with NaN everywhere (failed)
-    is left out. Adds the ROC over the declare threshold."""
+    """The yardstick of one filter over R runs: prob (R, K, nf), world_faults (R, K, nw); a run with
+    NaN everywhere (failed) is left out. right, world_active (R, K, nw): as `run_yardstick`. Adds
+    the ROC over the declare threshold."""
     rule = rule or Hysteresis.of_service()
     ok = [r for r in range(prob.shape[0]) if np.isfinite(prob[r]).any()]
 
     def at(rl: Hysteresis) -> dict:
-        return pool([run_yardstick(t, prob[r], fault_ids, world_faults[r], world_ids, rl,
+        return pool([run_yardstick(t, prob[r], fault_ids, world_faults[r], world_ids, rl, right,
                                    None if world_active is None else world_active[r]) for r in ok],
                     world_ids)
 

@@ -1,0 +1,259 @@
+"""The yardstick per fault type (issue 17, "fault catalogue"): for a world whose injected faults
+have types (stuck, noisy, jammed, ...), how each type is detected, isolated and estimated.
+
+An injected fault is an (item, type): its channel's target (a measurement row or an input) and its
+`fault_type` (sensor "bias" | "stuck" | "noisy" | "blocked", actuator "bias" | "jammed" |
+"effectiveness"). A monitored entry is the same pair (`FaultSpec.target`, `FaultSpec.fault_type`).
+Per episode (a stretch of the channel's active frames; activity from the profile's intervals,
+`channel_active`, since a noisy k or an effectiveness g can leave the additive-equivalent value ~0
+while active), with the service's declarations (`sim_bridge.yardstick.declarations`) and the
+window from onset to GRACE_S after the end (`sim_bridge.yardstick`):
+- the **right** entries have the same item and a matching type (`type_matches`: equal, or a
+  "blocked" pitot answered by a "stuck" entry);
+- **detected**: an entry watching the same item (any type) is declared in the window; **delay**
+  from the onset to its first declared frame (0 if one stood declared already);
+- **declared as**: the first entry declared in the window (`yardstick.first_declared`: an entry
+  of the item may stand declared already, any other must start its declaration inside the
+  window), as (its item, its type), else "missed";
+- **magnitude error**: RMSE over the episode's active frames of the right entry's estimate (the one
+  declared, else the first right entry) against the world's additive-equivalent truth, in the
+  fault's unit (noisy and effectiveness: unitless).
+Pooled per world fault type (`pool_by_type`) with a confusion table (true item:type -> declared
+item:type or "missed"). Times in s; R runs, K frames, nf monitored entries, nw world faults.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from sim_bridge.faults import EDGE_TOL_S
+from sim_bridge.scenario import ProfileComponent
+from sim_bridge.yardstick import (
+    Hysteresis,
+    declarations,
+    delay_stats,
+    episode_window,
+    episodes,
+    first_declared,
+    first_standing,
+)
+
+UNITLESS_TYPES = ("noisy", "effectiveness")
+"""Types whose additive-equivalent value is a factor minus 1 (k - 1, g - 1): no unit."""
+ANSWERS: dict[str, tuple[str, ...]] = {"blocked": ("blocked", "stuck")}
+"""World type -> the estimator types that answer it rightly (default: the same type only)."""
+MISSED = "missed"
+GOALS = {"detection_fraction": 0.95, "delay_median_s": 2.0, "right_fraction": 0.90,
+         "false_alarms_per_hour": 0.1}
+"""The issue's acceptance: >= 95 % detected, median delay <= 2 s, right item and type >= 90 %,
+<= 0.1 false alarms per flight hour with every type enabled."""
+
+
+class Kind(NamedTuple):
+    """A fault's item (target: measurement row or input) and its type."""
+
+    target: str
+    type: str
+
+    def label(self) -> str:
+        """"target:type", the confusion table's key."""
+        return f"{self.target}:{self.type}"
+
+
+class WorldFault(NamedTuple):
+    """An injected fault as this yardstick sees it: its kind, unit label and SI -> unit divisor."""
+
+    kind: Kind
+    unit: str
+    scale: float
+
+
+def fault_type(fault: Any) -> str:
+    """A world channel's or monitored entry's type ("bias" when it has none)."""
+    return getattr(fault, "fault_type", "bias")
+
+
+def kind_of(fault: Any) -> Kind:
+    """(target, type) of a FaultChannel or FaultSpec."""
+    return Kind(fault.target, fault_type(fault))
+
+
+def world_fault(channel: Any) -> WorldFault:
+    """A FaultChannel's kind and the unit its magnitude error is reported in."""
+    ty = fault_type(channel)
+    if ty in UNITLESS_TYPES:
+        return WorldFault(Kind(channel.target, ty), "-", 1.0)
+    return WorldFault(Kind(channel.target, ty), channel.unit, channel.unit_scale)
+
+
+def is_typed(channels: Sequence[Any]) -> bool:
+    """Whether a world injects any fault that is not a bias (then it is scored by item and type)."""
+    return any(fault_type(c) != "bias" for c in channels)
+
+
+def type_matches(world_type: str, entry_type: str) -> bool:
+    """Whether an entry of entry_type is the right answer to a world fault of world_type."""
+    return entry_type in ANSWERS.get(world_type, (world_type,))
+
+
+def item_type_matches(entries: Sequence[Kind], world: Sequence[Kind]) -> list[list[int]]:
+    """Per world fault (nw,), the indices of the entries (nf,) of the same item and matching type."""
+    return [[j for j, e in enumerate(entries) if e.target == w.target and type_matches(w.type, e.type)]
+            for w in world]
+
+
+def truth_columns(entries: Sequence[Any], channels: Sequence[Any]) -> list[int | None]:
+    """Per monitored entry (FaultSpec, nf), the world channel (FaultChannel, index into nw) whose
+    value is its truth: the channel of the same id in a bias-only world, else the first channel it
+    rightly answers (same item, matching type); None: the world injects none."""
+    if not is_typed(channels):
+        ids = [c.id for c in channels]
+        return [ids.index(e.id) if e.id in ids else None for e in entries]
+    right = item_type_matches([kind_of(e) for e in entries], [kind_of(c) for c in channels])
+    return [next((w for w, r in enumerate(right) if j in r), None) for j in range(len(entries))]
+
+
+def component_active(comp: ProfileComponent, t: np.ndarray) -> np.ndarray:
+    """(K,) bool: where one profile component acts at times t (K,) s: [start_s, end_s), and for an
+    intermittent one only its on phases (edges as `sim_bridge.faults.component_value`)."""
+    t = np.asarray(t, float)
+    on = (t >= comp.start_s - EDGE_TOL_S) & (t < comp.end_s - EDGE_TOL_S)
+    if comp.shape == "intermittent":
+        on &= np.mod(t - comp.start_s + EDGE_TOL_S, comp.on_s + comp.off_s) < comp.on_s
+    return on
+
+
+def channel_active(channel: Any, t: np.ndarray) -> np.ndarray:
+    """(K,) bool: where any of a channel's profile components acts."""
+    out = np.zeros(np.shape(t), bool)
+    for comp in channel.profile:
+        out |= component_active(comp, t)
+    return out
+
+
+def world_active(channels: Sequence[Any], t: np.ndarray) -> np.ndarray:
+    """(K, nw) bool: each channel's activity at times t (K,) s."""
+    return np.stack([channel_active(c, t) for c in channels], axis=1) if channels else \
+        np.zeros((np.size(t), 0), bool)
+
+
+def magnitude_sq(estimate: np.ndarray, truth: np.ndarray, active: np.ndarray,
+                 scale: float) -> tuple[float, int]:
+    """(sum of squared errors, frames) of estimate vs truth (K,) SI over the active frames (K,)
+    bool, in the fault's unit (SI / scale); NaN frames left out."""
+    err = (np.asarray(estimate, float)[active] - np.asarray(truth, float)[active]) / scale
+    ok = np.isfinite(err)
+    return float(np.sum(err[ok] ** 2)), int(ok.sum())
+
+
+def typed_episode(t: np.ndarray, dec: np.ndarray, entries: Sequence[Kind], names: list[str],
+                  fault: WorldFault, right: list[int], s: int, e: int) -> dict:
+    """Detection and isolation of one episode [s, e) of a world fault, against the declarations
+    dec (K, nf) of the entries (nf,) (names (nf,) break ties); right: indices of its right entries.
+    Magnitude fields are filled by `typed_run`."""
+    win = episode_window(t, s, e)
+    item = [j for j, en in enumerate(entries) if en.target == fault.kind.target]
+    hit = first_standing(dec, win, item)
+    k = hit[0] if hit else None
+    first = first_declared(dec, win, item, names)
+    decl = entries[first[1]] if first else None
+    return {"item": fault.kind.target, "type": fault.kind.type, "detected": k is not None,
+            "delay_s": float(t[s + k] - t[s]) if k is not None else None,
+            "declared": decl.label() if decl else MISSED, "right": first is not None and first[1] in right,
+            "right_item": decl is not None and decl.target == fault.kind.target,
+            "entry": first[1] if first and first[1] in right else (right[0] if right else None)}
+
+
+def typed_run(t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray, entries: Sequence[Kind],
+              names: list[str], faults: Sequence[WorldFault], truth: np.ndarray, active: np.ndarray,
+              rule: Hysteresis) -> list[dict]:
+    """One run's episodes (`typed_episode`, plus sq_err and n: the magnitude error's sum of squares
+    and frames): prob, f_hat (K, nf) P(fault) and estimates (SI) of the entries; truth (K, nw) the
+    world's additive-equivalent values (SI), active (K, nw) bool its activity."""
+    dec = declarations(t, prob, rule)
+    right = item_type_matches(entries, [f.kind for f in faults])
+    out = []
+    for w, fault in enumerate(faults):
+        for s, e in episodes(active[:, w]):
+            ep = typed_episode(t, dec, entries, names, fault, right[w], s, e)
+            j = ep.pop("entry")
+            sq, n = magnitude_sq(f_hat[s:e, j], truth[s:e, w], active[s:e, w], fault.scale) \
+                if j is not None else (0.0, 0)
+            out.append({**ep, "unit": fault.unit, "sq_err": sq, "n": n})
+    return out
+
+
+def _fraction(eps: list[dict], key: str) -> float | None:
+    """Share of episodes whose key is true; None without episodes."""
+    return sum(1 for ep in eps if ep[key]) / len(eps) if eps else None
+
+
+def magnitude_rmse(eps: list[dict]) -> dict[str, float]:
+    """unit -> RMSE of the magnitude over every active frame of the episodes (units not pooled)."""
+    out = {}
+    for unit in dict.fromkeys(ep["unit"] for ep in eps):
+        sq = sum(ep["sq_err"] for ep in eps if ep["unit"] == unit)
+        n = sum(ep["n"] for ep in eps if ep["unit"] == unit)
+        if n:
+            out[unit] = float(np.sqrt(sq / n))
+    return out
+
+
+def type_row(eps: list[dict]) -> dict:
+    """The pooled figures of one fault type's episodes."""
+    delays = [ep["delay_s"] for ep in eps if ep["delay_s"] is not None]
+    return {"episodes": len(eps), "detected": len(delays),
+            "detection_fraction": _fraction(eps, "detected"), "delay_s": delay_stats(delays),
+            "right_fraction": _fraction(eps, "right"), "right_item_fraction": _fraction(eps, "right_item"),
+            "magnitude_rmse": magnitude_rmse(eps)}
+
+
+def confusion(eps: list[dict]) -> dict[str, dict[str, int]]:
+    """True "item:type" -> {declared "item:type" or "missed": episodes}."""
+    out: dict[str, dict[str, int]] = {}
+    for ep in eps:
+        row = out.setdefault(Kind(ep["item"], ep["type"]).label(), {})
+        row[ep["declared"]] = row.get(ep["declared"], 0) + 1
+    return out
+
+
+def pool_by_type(eps: list[dict]) -> dict:
+    """The episodes of all runs pooled: {"types": type -> `type_row`, "confusion": `confusion`}."""
+    types = dict.fromkeys(ep["type"] for ep in eps)
+    return {"types": {ty: type_row([ep for ep in eps if ep["type"] == ty]) for ty in types},
+            "confusion": confusion(eps)}
+
+
+def typed_yardstick(t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray, entries: Sequence[Kind],
+                    names: list[str], faults: Sequence[WorldFault], truth: np.ndarray,
+                    active: np.ndarray, rule: Hysteresis | None = None) -> dict:
+    """`pool_by_type` of one filter over R runs: prob, f_hat (R, K, nf); truth (R, K, nw) SI,
+    active (R, K, nw) bool. A run with NaN P everywhere (failed) is left out."""
+    rule = rule or Hysteresis.of_service()
+    eps = [ep for r in range(prob.shape[0]) if np.isfinite(prob[r]).any()
+           for ep in typed_run(t, prob[r], f_hat[r], entries, names, faults, truth[r], active[r], rule)]
+    return pool_by_type(eps)
+
+
+def run_activity(scenario: Any, sim_seeds: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(R, K, nw) bool: each run's world fault activity at times t (K,) s, from the profiles that
+    run flew (`sim_bridge.simulate.run_faults` of its simulator seed, sim_seeds (R,))."""
+    from sim_bridge.simulate import run_faults
+
+    return np.stack([world_active(run_faults(scenario, int(seed)).faults, t) for seed in sim_seeds])
+
+
+def scenario_yardsticks(scenario: Any, t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray,
+                        world_faults: np.ndarray, sim_seeds: np.ndarray) -> tuple[dict, dict]:
+    """A typed world's inputs to the yardstick, the by-item-and-type matching, and the per-type
+    pool: ({"right": per world fault the right entries, "world_active": (R, K, nw)}, `typed_yardstick`).
+    prob, f_hat (R, K, nf); world_faults (R, K, nw) additive-equivalent truth (SI)."""
+    entries = [kind_of(f) for f in scenario.estimator.faults]
+    names = [f.id for f in scenario.estimator.faults]
+    active = run_activity(scenario, sim_seeds, t)
+    faults = [world_fault(c) for c in scenario.faults]
+    matching = {"right": item_type_matches(entries, [f.kind for f in faults]), "world_active": active}
+    return matching, typed_yardstick(t, prob, f_hat, entries, names, faults, world_faults, active)
