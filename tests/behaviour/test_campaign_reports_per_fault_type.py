@@ -1,25 +1,17 @@
 """A campaign whose world injects a typed fault (a stuck barometer, issue 17) is scored by item and
-type and its report shows the per-type table and confusion table; the world's `fault_type` is
-stood in for by a subclass of FaultChannel until the world side carries it."""
+type and its report shows the per-type table and confusion table."""
 
 import dataclasses
 import json
 
 from sim_bridge.campaign import run_campaign
 from sim_bridge.report import write_report
-from sim_bridge.scenario import FaultChannel
 from tests.behaviour.test_campaign_runs_seeds_and_reports import fake_builder
-
-
-@dataclasses.dataclass(frozen=True)
-class TypedChannel(FaultChannel):
-    fault_type: str = "bias"
 
 
 def test_a_stuck_barometer_is_reported_per_type_by_item_and_type(ch4, tmp_path):
     gnss, baro = ch4.faults                                    # gnss bias 10-30 s, baro 20-40 s
-    world = (gnss, TypedChannel(**{f.name: getattr(baro, f.name) for f in dataclasses.fields(baro)},
-                                fault_type="stuck"))
+    world = (gnss, dataclasses.replace(baro, fault_type="stuck"))
     sc = dataclasses.replace(ch4, faults=world)
     camp = run_campaign(sc, 2, seed=3, workers=1, progress=False, builder=fake_builder,
                         filters=("JMRPF",))
