@@ -189,8 +189,9 @@ def _yardstick(camp: Campaign, fr: FilterRuns) -> dict | None:
     ids, wids = [f.id for f in sc.estimator.faults], [f.id for f in sc.faults]
     if not is_typed(sc.faults):                       # bias only: matched by id
         return yardstick(fr.t, fr.prob, ids, fr.world_faults, wids, world_active=fr.world_active)
-    matching, by_type = scenario_yardsticks(sc, fr.t, fr.prob, fr.f_hat, fr.world_faults, fr.sim_seeds)
-    return {**yardstick(fr.t, fr.prob, ids, fr.world_faults, wids, **matching), "by_type": by_type}
+    strict, by_type = scenario_yardsticks(sc, fr.t, fr.prob, fr.f_hat, fr.world_faults, fr.sim_seeds)
+    items = yardstick(fr.t, strict.pop("prob"), strict.pop("fault_ids"), fr.world_faults, wids, **strict)
+    return {**items, "by_type": by_type}
 
 
 def check_orderings(results: dict[str, dict], orderings: tuple = ORDERINGS) -> list[dict]:

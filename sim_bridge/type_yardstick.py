@@ -10,11 +10,15 @@ while active), with the service's declarations (`sim_bridge.yardstick.declaratio
 window from onset to GRACE_S after the end (`sim_bridge.yardstick`):
 - the **right** entries have the same item and a matching type (`type_matches`: equal, or a
   "blocked" pitot answered by a "stuck" entry);
-- **detected**: an entry watching the same item (any type) is declared in the window; **delay**
-  from the onset to its first declared frame (0 if one stood declared already);
-- **declared as**: the first entry declared in the window (`yardstick.first_declared`: an entry
-  of the item may stand declared already, any other must start its declaration inside the
-  window), as (its item, its type), else "missed";
+- declarations are by item, as the service makes them (`fdir_service.runtime.items`): P(item
+  faulty) combines its entries' P (exclusive additive types add up, a noisy one is independent),
+  through the service's hysteresis; the type declared is the item's most probable entry's at the
+  first declared frame (`item_view`);
+- **detected**: the item is declared in the window; **delay** from the onset to its first declared
+  frame (0 if it stood declared already);
+- **declared as**: the first item declared in the window (`yardstick.first_declared`: the fault's
+  own item may stand declared already, any other must start its declaration inside the window),
+  as (its item, its type then), else "missed";
 - **magnitude error**: RMSE over the episode's active frames of the right entry's estimate (the one
   declared, else the first right entry) against the world's additive-equivalent truth, in the
   fault's unit (noisy and effectiveness: unitless).
@@ -149,22 +153,50 @@ def magnitude_sq(estimate: np.ndarray, truth: np.ndarray, active: np.ndarray,
     return float(np.sum(err[ok] ** 2)), int(ok.sum())
 
 
-def typed_episode(t: np.ndarray, dec: np.ndarray, entries: Sequence[Kind], names: list[str],
+class ItemView(NamedTuple):
+    """The service's view by item (`fdir_service.runtime.items`): names (ni,), targets (ni,);
+    prob (K, ni) P(item faulty); best (K, ni) the index of each item's most probable entry."""
+
+    names: list[str]
+    targets: list[str]
+    prob: np.ndarray
+    best: np.ndarray
+
+
+def item_view(prob: np.ndarray, entries: Sequence[Kind], names: list[str]) -> ItemView:
+    """The items of entries (nf,) and their P (`items.item_probability`) from the entries' P
+    prob (..., K, nf); best: the most probable entry of each item per frame."""
+    from fdir_service.runtime.items import ItemLayout, item_probability
+
+    groups: dict[str, list[int]] = {}
+    for j, en in enumerate(entries):
+        groups.setdefault(en.target, []).append(j)
+    layout = ItemLayout(tuple(names[g[0]] for g in groups.values()), tuple(groups),
+                        tuple(tuple(g) for g in groups.values()))
+    p_item = item_probability(prob, layout, [en.type for en in entries])
+    filled = np.where(np.isnan(prob), -np.inf, prob)
+    best = np.stack([np.asarray(g)[np.argmax(filled[..., g], axis=-1)] for g in layout.entries], axis=-1)
+    return ItemView(list(layout.names), list(layout.targets), p_item, best)
+
+
+def typed_episode(t: np.ndarray, dec: np.ndarray, view: ItemView, entries: Sequence[Kind],
                   fault: WorldFault, right: list[int], s: int, e: int) -> dict:
-    """Detection and isolation of one episode [s, e) of a world fault, against the declarations
-    dec (K, nf) of the entries (nf,) (names (nf,) break ties); right: indices of its right entries.
-    Magnitude fields are filled by `typed_run`."""
+    """Detection and isolation of one episode [s, e) of a world fault, against the item
+    declarations dec (K, ni) (`ItemView`: item names break ties, the most probable entry of the
+    declared item at its first declared frame is the type declared); right: indices of its right
+    entries. Magnitude fields are filled by `typed_run`."""
     win = episode_window(t, s, e)
-    item = [j for j, en in enumerate(entries) if en.target == fault.kind.target]
+    item = [i for i, tg in enumerate(view.targets) if tg == fault.kind.target]
     hit = first_standing(dec, win, item)
     k = hit[0] if hit else None
-    first = first_declared(dec, win, item, names)
-    decl = entries[first[1]] if first else None
+    first = first_declared(dec, win, item, view.names)
+    entry = int(view.best[win.start + first[0], first[1]]) if first else None
+    decl = entries[entry] if first else None
     return {"item": fault.kind.target, "type": fault.kind.type, "detected": k is not None,
             "delay_s": float(t[s + k] - t[s]) if k is not None else None,
-            "declared": decl.label() if decl else MISSED, "right": first is not None and first[1] in right,
+            "declared": decl.label() if decl else MISSED, "right": entry is not None and entry in right,
             "right_item": decl is not None and decl.target == fault.kind.target,
-            "entry": first[1] if first and first[1] in right else (right[0] if right else None)}
+            "entry": entry if entry in right else (right[0] if right else None)}
 
 
 def typed_run(t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray, entries: Sequence[Kind],
@@ -173,12 +205,13 @@ def typed_run(t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray, entries: Seque
     """One run's episodes (`typed_episode`, plus sq_err and n: the magnitude error's sum of squares
     and frames): prob, f_hat (K, nf) P(fault) and estimates (SI) of the entries; truth (K, nw) the
     world's additive-equivalent values (SI), active (K, nw) bool its activity."""
-    dec = declarations(t, prob, rule)
+    view = item_view(prob, entries, names)
+    dec = declarations(t, view.prob, rule)
     right = item_type_matches(entries, [f.kind for f in faults])
     out = []
     for w, fault in enumerate(faults):
         for s, e in episodes(active[:, w]):
-            ep = typed_episode(t, dec, entries, names, fault, right[w], s, e)
+            ep = typed_episode(t, dec, view, entries, fault, right[w], s, e)
             j = ep.pop("entry")
             sq, n = magnitude_sq(f_hat[s:e, j], truth[s:e, w], active[s:e, w], fault.scale) \
                 if j is not None else (0.0, 0)
@@ -248,12 +281,15 @@ def run_activity(scenario: Any, sim_seeds: np.ndarray, t: np.ndarray) -> np.ndar
 
 def scenario_yardsticks(scenario: Any, t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray,
                         world_faults: np.ndarray, sim_seeds: np.ndarray) -> tuple[dict, dict]:
-    """A typed world's inputs to the yardstick, the by-item-and-type matching, and the per-type
-    pool: ({"right": per world fault the right entries, "world_active": (R, K, nw)}, `typed_yardstick`).
+    """A typed world's inputs to the strict yardstick, by item as the service declares
+    ({"prob": (R, K, ni) P(item faulty), "fault_ids": item names, "right": per world fault its
+    item, "world_active": (R, K, nw)}), and the per-type pool (`typed_yardstick`).
     prob, f_hat (R, K, nf); world_faults (R, K, nw) additive-equivalent truth (SI)."""
     entries = [kind_of(f) for f in scenario.estimator.faults]
     names = [f.id for f in scenario.estimator.faults]
     active = run_activity(scenario, sim_seeds, t)
     faults = [world_fault(c) for c in scenario.faults]
-    matching = {"right": item_type_matches(entries, [f.kind for f in faults]), "world_active": active}
-    return matching, typed_yardstick(t, prob, f_hat, entries, names, faults, world_faults, active)
+    view = item_view(prob, entries, names)
+    right = [[i for i, tg in enumerate(view.targets) if tg == f.kind.target] for f in faults]
+    strict = {"prob": view.prob, "fault_ids": view.names, "right": right, "world_active": active}
+    return strict, typed_yardstick(t, prob, f_hat, entries, names, faults, world_faults, active)

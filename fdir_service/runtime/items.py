@@ -101,20 +101,33 @@ def is_plain(layout: ItemLayout, types: Sequence[str]) -> bool:
     return all(len(e) == 1 for e in layout.entries) and all(t == "bias" for t in types)
 
 
-def combine_probability(p: np.ndarray) -> float:
-    """P(item faulty) from its entries' mode-1 probabilities p (k,), unitless in [0, 1].
+def combine_probability(p: np.ndarray, noisy: np.ndarray | None = None) -> np.ndarray | float:
+    """P(item faulty) from its entries' mode-1 probabilities p (..., k), unitless in [0, 1]; noisy
+    (k,) bool marks noisy entries (None: none).
 
-    Noisy-OR, 1 - prod(1 - p_j): the probability that at least one entry is in mode 1, treating the
-    entries' modes as independent. It lies between the bounds of P(union), max p_j and
-    min(1, sum p_j). The max was rejected: when a fault's type is ambiguous two entries share the
-    evidence (stuck 0.6, bias 0.6), and the max (0.6) would hold back a declaration the item
-    plainly deserves (noisy-OR 0.84). The price, a fault-free background probability p0 growing to
-    about k p0, is small with k <= 3 types per target. A single entry's p is returned unchanged
-    (bit for bit), so a one-entry item behaves exactly as its entry.
+    The additive types of an item (bias, stuck, jammed, effectiveness) are exclusive in every
+    particle (one of them in mode 1 at a time, `fault_types.TypeSwitch.open`), so P(one of them) is
+    their sum, exactly; a noisy entry may stand beside one of them and is combined as an independent
+    event, 1 - (1 - P(additive)) prod(1 - p_noisy). When a fault's type is ambiguous the types share
+    the evidence (stuck 0.6, bias 0.3) and the item still has the whole of it (0.9). A single
+    entry's p is returned unchanged (bit for bit), so a one-entry item behaves exactly as its entry.
     """
-    if p.size == 1:
-        return float(p[0])
-    return float(1.0 - np.prod(1.0 - p))
+    p = np.asarray(p, dtype=float)
+    if p.shape[-1] == 1:
+        return float(p[0]) if p.ndim == 1 else p[..., 0].copy()
+    noisy = np.zeros(p.shape[-1], bool) if noisy is None else np.asarray(noisy, bool)
+    additive = np.minimum(p[..., ~noisy].sum(axis=-1), 1.0)
+    out = 1.0 - (1.0 - additive) * np.prod(1.0 - p[..., noisy], axis=-1)
+    return float(out) if out.ndim == 0 else out
+
+
+def item_probability(prob: np.ndarray, layout: ItemLayout, types: Sequence[str]) -> np.ndarray:
+    """P(item faulty) (..., ni) from the entries' P(fault) prob (..., nf) (`combine_probability`)."""
+    prob = np.asarray(prob, dtype=float)
+    out = np.empty(prob.shape[:-1] + (len(layout),))
+    for i, idx in enumerate(layout.entries):
+        out[..., i] = combine_probability(prob[..., list(idx)], np.array([types[j] == "noisy" for j in idx]))
+    return out
 
 
 def item_frame(layout: ItemLayout, out: StepOutput, types: Sequence[str]) -> ItemFrame:
@@ -129,7 +142,7 @@ def item_frame(layout: ItemLayout, out: StepOutput, types: Sequence[str]) -> Ite
     best = np.empty(len(layout), dtype=int)
     for i, idx in enumerate(layout.entries):
         pe = prob[list(idx)]
-        p[i] = combine_probability(pe)
+        p[i] = combine_probability(pe, np.array([types[j] == "noisy" for j in idx]))
         best[i] = idx[int(np.argmax(np.where(np.isnan(pe), -np.inf, pe)))]
     value = np.array([out.value_of(int(j)) for j in best])
     return ItemFrame(p, best, tuple(types[int(j)] for j in best), value)

@@ -17,8 +17,9 @@ def test_a_stuck_barometer_is_reported_per_type_by_item_and_type(ch4, tmp_path):
                         filters=("JMRPF",))
     doc = write_report(camp, tmp_path, make_figures=False)
     y = doc["filters"]["JMRPF"]["yardstick"]
-    # the ch4 estimator has bias entries only: the stuck baro is declared on its item, wrong type
-    assert y["isolation"] == {"gnss": {"gnss": 2}, "baro": {"baro": 2}} and y["isolation_accuracy"] == 0.5
+    # the strict yardstick counts by item, as the service declares: the baro item was declared ...
+    assert y["isolation"] == {"gnss": {"gnss": 2}, "baro": {"baro": 2}} and y["isolation_accuracy"] == 1.0
+    # ... but the ch4 estimator has bias entries only: the stuck baro was declared as the wrong type
     bt = y["by_type"]
     assert bt["confusion"] == {"gnss_alt:bias": {"gnss_alt:bias": 2}, "baro_alt:stuck": {"baro_alt:bias": 2}}
     st = bt["types"]["stuck"]

@@ -37,8 +37,8 @@ def typed_config() -> ServiceConfig:
 
 
 class StuckFake:
-    """From ONSET_S on, q_stk is in mode 1 (P 0.97, value HELD) and q's bias entry half believes
-    it (P 0.4); types and values are reported only when `report_types` (else the pipeline fills
+    """From ONSET_S on, q_stk is in mode 1 (P 0.97, value HELD) and q's bias entry holds the rest
+    (P 0.02); types and values are reported only when `report_types` (else the pipeline fills
     the types in from the config and the value falls back to the estimate)."""
 
     name = "STUCKFAKE"
@@ -58,7 +58,7 @@ class StuckFake:
         f = np.zeros(nf)
         j, q = self.fault_ids.index("q_stk"), self.fault_ids.index("q")
         if on:
-            p[j], p[q], f[j], f[q] = 0.97, 0.4, HELD - 0.001, 0.01
+            p[j], p[q], f[j], f[q] = 0.97, 0.02, HELD - 0.001, 0.01
         value = f.copy()
         value[j] = HELD if on else 0.0
         return StepOutput(t, x, np.eye(5 + nf), self.fault_ids, f, p, 100.0, False, fault_types=self.types,
@@ -107,13 +107,13 @@ def test_a_stuck_gyro_is_published_typed(report_types):
     assert unpack_fault_types(first.fault_type)[:4] == [dialect.FDIR_FAULT_TYPE_BIAS] * 4
     for m in late:
         assert unpack_fault_types(m.fault_type)[:4] == [0, 0, 0, dialect.FDIR_FAULT_TYPE_STUCK]
-        assert m.p_fault[3] == pytest.approx(1 - 0.03 * 0.6, abs=1e-6)
+        assert m.p_fault[3] == pytest.approx(0.99, abs=1e-6)
         want = HELD if report_types else HELD - 0.001          # without values: the estimate
         assert m.fault_value[3] == pytest.approx(want, rel=1e-6) and m.fault[3] == pytest.approx(HELD - 0.001)
         assert m.declared == 0b1000 and math.isnan(m.fault_value[4])
     text = [m.text for m in msgs if m.get_type() == "STATUSTEXT" and m.text.startswith("FDIR q")]
     value = "3.2" if report_types else "3.1"
-    assert text == [f"FDIR q stuck at {value} deg/s p=0.98"]
+    assert text == [f"FDIR q stuck at {value} deg/s p=0.99"]
     decl = ev.of(FaultDeclared)
     assert [(e.fault_id, e.fault_type) for e in decl] == [("q", "stuck")]
 
@@ -158,7 +158,7 @@ def test_recording_holds_types_values_and_items_and_replays_them(tmp_path):
     it = items[-1]
     assert set(k.removeprefix("type_") for k in it if k.startswith("type_")) == {"gnss", "baro", "theta", "q"}
     assert (it["type_q"], it["declared_q"], it["declared_gnss"]) == (1, 1, 0)
-    assert it["v_q"] == pytest.approx(HELD) and it["p_q"] == pytest.approx(0.982)
+    assert it["v_q"] == pytest.approx(HELD) and it["p_q"] == pytest.approx(0.99)
     assert items[0]["type_q"] == 0 and items[0]["declared_q"] == 0
     summary = item_summary(items)
     assert summary["q"]["type"] == "stuck" and summary["gnss"]["type"] == "bias"

@@ -57,11 +57,15 @@ def test_items_group_entries_by_target_named_by_their_first_entry():
     assert is_plain(plain, entry_types(FAULTS[:2])) and plain.entries == ((0,), (1,))
 
 
-def test_item_probability_is_noisy_or_and_a_single_entry_is_unchanged_bit_for_bit():
-    assert combine_probability(np.array([0.6, 0.6])) == pytest.approx(0.84)
+def test_item_probability_sums_exclusive_types_adds_noise_independently_and_keeps_a_single_entry():
+    assert combine_probability(np.array([0.6, 0.3])) == pytest.approx(0.9)           # stuck or bias
+    assert combine_probability(np.array([0.6, 0.6])) == 1.0                           # clipped
     assert combine_probability(np.array([0.97, 0.0])) == pytest.approx(0.97)
     assert combine_probability(np.array([0.1])) == 0.1            # 1 - (1 - 0.1) would be 0.0999...
-    assert combine_probability(np.array([0.01, 0.01, 0.01])) == pytest.approx(0.029701)
+    noisy = np.array([False, False, True])
+    assert combine_probability(np.array([0.2, 0.1, 0.5]), noisy) == pytest.approx(1 - 0.7 * 0.5)
+    batch = combine_probability(np.array([[0.2, 0.1, 0.5], [0.0, 0.0, 0.0]]), noisy)
+    assert batch.tolist() == pytest.approx([0.65, 0.0])
 
 
 def test_item_frame_picks_the_most_probable_entry_its_type_and_value():
@@ -70,7 +74,7 @@ def test_item_frame_picks_the_most_probable_entry_its_type_and_value():
     view = item_frame(item_layout(FAULTS), step(p, v), entry_types(FAULTS))
     assert view.types == ("bias", "stuck", "noisy", "jammed", "effectiveness")
     assert view.entry.tolist() == [0, 3, 2, 4, 5]
-    assert view.p.tolist() == pytest.approx([0.02, 1 - 0.7 * 0.03, 0.93, 0.95, 0.99])
+    assert view.p.tolist() == pytest.approx([0.02, 1.0, 0.93, 0.95, 0.99])       # 0.30 + 0.97, clipped
     assert view.value.tolist() == pytest.approx([1.0, 3.2 * DEG, 4.1, -3.1 * DEG, 0.0])
     # the bias entry wins when it is the more probable one; value falls back to the estimate
     view = item_frame(item_layout(FAULTS), step([0, 0.8, 0, 0.1, 0, 0], estimate=[0, 2 * DEG, 0, 0, 0, 0]),
@@ -99,19 +103,19 @@ def frame(k: int) -> AssembledFrame:
 
 def test_item_hysteresis_declares_with_the_type_and_announces_a_type_change():
     pub = Publisher(CFG.publish, FAULTS[:4], new_mavlink(1, 191), adaptive=False)   # hold 0.2 s
-    stuck = step([0.0, 0.1, 0.0, 0.97], value=[0, 0, 0, 3.2 * DEG])
-    bias = step([0.0, 0.98, 0.0, 0.05], estimate=[0, 2.5 * DEG, 0, 0])
+    stuck = step([0.0, 0.02, 0.0, 0.97], value=[0, 0, 0, 3.2 * DEG])
+    bias = step([0.0, 0.93, 0.0, 0.05], estimate=[0, 2.5 * DEG, 0, 0])
     events, texts = [], []
     for k, out in enumerate([stuck] * 5 + [bias] * 3 + [bias] * 2 + [step([0.0] * 4)] * 25):
         msgs, ev = pub.publish(frame(200 + k), out)
         events += ev
         texts += [m.text for m in new_mavlink(255, 0).parse_buffer(b"".join(msgs)) or []
                   if m.get_type() == "STATUSTEXT"]
-    p_q = 1 - 0.9 * 0.03
+    p_q = 0.02 + 0.97                       # exclusive types: their probabilities add
     assert events[0] == FaultDeclared("q", 10.2, pytest.approx(p_q), pytest.approx(3.2 * DEG),
                                       f"FDIR q stuck at 3.2 deg/s p={p_q:.2f}", "stuck")
     changed = "FDIR q fault +2.5 deg/s p=0.98 (was stuck)"
-    assert events[1] == FaultTypeChanged("q", pytest.approx(10.45), pytest.approx(1 - 0.02 * 0.95),
+    assert events[1] == FaultTypeChanged("q", pytest.approx(10.45), pytest.approx(0.98),
                                          pytest.approx(2.5 * DEG), changed, "bias", "stuck")
     assert isinstance(events[2], FaultCleared) and events[2].fault_id == "q" and len(events) == 3
     assert texts == [e.statustext for e in events]
@@ -129,7 +133,7 @@ def test_a_type_flicker_shorter_than_the_hold_is_not_announced():
 
 def test_estimate_channels_are_items_with_type_and_value_extensions():
     pub = Publisher(CFG.publish, FAULTS, new_mavlink(1, 191), adaptive=False)
-    out = step([0.02, 0.30, 0.93, 0.97, 0.95, 0.99], value=[1.0, 0.5 * DEG, 4.1, 3.2 * DEG, -3.1 * DEG, 0.0],
+    out = step([0.02, 0.01, 0.93, 0.97, 0.95, 0.99], value=[1.0, 0.5 * DEG, 4.1, 3.2 * DEG, -3.1 * DEG, 0.0],
                estimate=[1.0, 0.5 * DEG, 3.1, -0.2, -0.01, -1.0])
     msg = pub.estimate_message(frame(1), out)
     assert msg.fault_count == 5
@@ -139,7 +143,7 @@ def test_estimate_channels_are_items_with_type_and_value_extensions():
     assert list(msg.fault_type) == [0x10, 0x32, 0x04, 0x00]   # two channels per byte, low nibble first
     assert msg.fault_value[:5] == pytest.approx([1.0, 3.2 * DEG, 4.1, -3.1 * DEG, 0.0])
     assert msg.fault[:5] == pytest.approx([1.0, -0.2, 3.1, -0.01, -1.0])   # the chosen entry's state
-    assert msg.p_fault[1] == pytest.approx(1 - 0.7 * 0.03) and math.isnan(msg.fault_value[5])
+    assert msg.p_fault[1] == pytest.approx(0.98) and math.isnan(msg.fault_value[5])
 
 
 def test_fault_types_pack_two_per_byte_and_unpack_from_short_or_missing_fields():

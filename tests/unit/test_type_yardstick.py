@@ -152,7 +152,8 @@ def test_a_typed_world_is_scored_by_item_and_type_and_reported_per_type():
     f_hat[:, :, 1] = np.where(_between(10.0, 20.0), 2.0, 0.0)  # 1 m below the truth of 3 m
     world = np.where(_between(10.0, 20.0), 3.0, 0.0)[None, :, None].repeat(2, axis=0)
     matching, by_type = scenario_yardsticks(sc, T, prob, f_hat, world, np.array([1, 2]))
-    assert matching["right"] == [[1]] and matching["world_active"].shape == (2, T.size, 1)
+    assert matching["right"] == [[0]] and matching["fault_ids"] == ["baro", "theta", "as_st"]   # items
+    assert matching["world_active"].shape == (2, T.size, 1) and matching["prob"].shape == (2, T.size, 3)
     st = by_type["types"]["stuck"]
     assert st["detection_fraction"] == 1.0 and st["right_fraction"] == 0.5
     assert st["magnitude_rmse"] == {"m": pytest.approx(1.0)}
