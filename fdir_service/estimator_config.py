@@ -43,6 +43,10 @@ AIR_ROWS = ("airspeed",)
 """The pitot's airspeed (m/s): an input of the kinematic model's pitching moment (dynamic pressure)."""
 INPUT_ROWS = IMU_ROWS + AIR_ROWS
 """Rows a process model takes as inputs, in the order they extend the input vector."""
+THRUST_ROW = "throttle"
+"""A derived row (`thrust.ThrustCheck`): the throttle the accelerometer implies minus the commanded
+one (unitless, 0..1 scale); observed by a kinematic estimator that lists ax, az and airspeed and
+watches the throttle, so an engine that quits is seen though the IMU-driven model has no thrust."""
 MEASUREMENTS = OBSERVED_ROWS + INPUT_ROWS
 """Measurement rows an estimator may list."""
 ACTUATORS = ("delta_e", "delta_t")
@@ -143,6 +147,7 @@ class FilterSettings:
     actuator_sentinel: str = "consistent"  # "thesis" | "consistent" (B_a dF moves the state)
     rate_sentinel: str = "row"           # gyro fault amplitude: "row" (eq. 4.16) | "window" (theta slope)
     rate_window_s: float = 1.0           # the window of rate_sentinel = "window" (s)
+    thrust_sigma: float = 0.01           # noise of the derived throttle row (0..1 throttle scale)
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -182,8 +187,18 @@ class EstimatorConfig:
 
     @property
     def observed(self) -> tuple[str, ...]:
-        """The rows the filters observe: `measurements` without the input rows (m_obs,)."""
-        return tuple(r for r in self.measurements if r not in INPUT_ROWS)
+        """The rows the filters observe (m_obs,): `measurements` without the input rows, then the
+        derived rows (`derived_rows`)."""
+        return tuple(r for r in self.measurements if r not in INPUT_ROWS) + self.derived_rows
+
+    @property
+    def derived_rows(self) -> tuple[str, ...]:
+        """Rows the filters make from other rows: (`THRUST_ROW`,) for a kinematic process model with
+        ax, az and airspeed that watches a throttle fault, else ()."""
+        needs = {"ax", "az", "airspeed"} <= set(self.measurements)
+        watched = any(f.target == "delta_t" for f in self.faults)
+        kinematic = self.settings.process_model == "kinematic"
+        return (THRUST_ROW,) if needs and watched and kinematic else ()
 
     @property
     def input_rows(self) -> tuple[str, ...]:
@@ -191,8 +206,9 @@ class EstimatorConfig:
         return tuple(r for r in INPUT_ROWS if r in self.measurements)
 
     def observed_sigma(self) -> list[float]:
-        """Measurement noise std (m_obs,) of the observed rows (SI)."""
-        return [s for r, s in zip(self.measurements, self.sigma, strict=True) if r not in INPUT_ROWS]
+        """Measurement noise std (m_obs,) of the observed rows (SI; the throttle row's unitless)."""
+        listed = [s for r, s in zip(self.measurements, self.sigma, strict=True) if r not in INPUT_ROWS]
+        return listed + [self.settings.thrust_sigma] * len(self.derived_rows)
 
     def state_process_std(self) -> tuple[float, ...]:
         """Per-step std (5,) of the airframe-state process noise (SI)."""
@@ -350,6 +366,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         saddlepoint_window=f.take("saddlepoint_window", "integer", d.saddlepoint_window,
                                   check=POSITIVE),
         rate_window_s=f.take("rate_window_s", "number", d.rate_window_s, check=POSITIVE),
+        thrust_sigma=f.take("thrust_sigma", "number", d.thrust_sigma, check=POSITIVE),
         imm=_imm(f, faults), gating=_gating(f), **words)
     f.finish()
     return s
@@ -366,17 +383,22 @@ def _check_prior(settings: FilterSettings, faults: tuple[FaultSpec, ...]) -> Non
 
 def _check_kinematic(settings: FilterSettings, faults: tuple[FaultSpec, ...],
                      rows: tuple[str, ...]) -> None:
-    """The kinematic process model needs the accelerometer rows and sees no actuator."""
+    """The kinematic process model needs the accelerometer rows; it sees the elevator through the
+    pitching moment and the throttle through the thrust check (`thrust.ThrustCheck`), both of
+    which need the airspeed row."""
     if settings.process_model != "kinematic":
         return
     missing = [r for r in IMU_ROWS if r not in rows]
     if missing:
         raise ConfigError(f"parts.process_model = \"kinematic\" integrates the accelerometer: "
                           f"measurements.rows must list {', '.join(IMU_ROWS)}; missing {missing}")
-    unseen = [f.id for f in faults if f.kind == "actuator" and f.target != "delta_e"]
+    unseen = [f.id for f in faults if f.kind == "actuator" and f.target != "delta_e"
+              and "airspeed" not in rows]
     if unseen:
-        raise ConfigError(f"parts.process_model = \"kinematic\" models the pitching moment only: it cannot "
-                          f"see actuator faults {unseen}; watch them with process_model = \"nonlinear\"")
+        raise ConfigError(f"parts.process_model = \"kinematic\" sees the throttle only through the "
+                          f"thrust its accelerometer implies (measurements.rows must list airspeed): "
+                          f"it cannot see actuator faults {unseen}; list airspeed, or watch them with "
+                          f"process_model = \"nonlinear\"")
     elevator = [f.id for f in faults if f.target == "delta_e"]
     if elevator and "airspeed" not in rows:
         raise ConfigError(f"parts.process_model = \"kinematic\" sees the elevator {elevator} through the "

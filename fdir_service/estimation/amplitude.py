@@ -60,6 +60,11 @@ class AmplitudePredictor:
                 G[j, np.searchsorted(rows, r)] = 1.0
                 avail[j] = True
                 sigma[j] = self.meas.sigma[r]
+        for j, r in enumerate(lay.direct_row):        # an input its own derived row observes
+            if r >= 0 and mask[r]:
+                G[j, np.searchsorted(rows, r)] = 1.0
+                avail[j] = True
+                sigma[j] = self.meas.sigma[r]
         for j, r in enumerate(lay.noisy_row):          # k - 1 keeps f: `fault_types.NoisySentinels` draws it
             if r >= 0 and mask[r]:
                 avail[j] = True
@@ -75,7 +80,8 @@ class AmplitudePredictor:
         generalised least-squares fit per input, shared by every fault entry on that input (its
         types differ in how the entry evolves, not in what one frame says of it)."""
         lay = self.layout
-        act = np.flatnonzero(lay.actuator_input >= 0)
+        moves = np.abs(self.B_actuator).sum(axis=0) > 0
+        act = np.flatnonzero((lay.actuator_input >= 0) & (lay.direct_row < 0) & moves)
         if not act.size:
             return
         inputs, first = np.unique(lay.actuator_input[act], return_index=True)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fdir_service.estimation.thrust import ThrustCheck
 from fdir_service.estimator_config import INPUT_ROWS, EstimatorConfig
 
 G = 9.80665
@@ -40,12 +41,14 @@ class RowSplit:
     """
 
     def __init__(self, observed: np.ndarray, imu: np.ndarray, imu_as_input: bool,
-                 hold: np.ndarray | None = None) -> None:
+                 hold: np.ndarray | None = None, thrust: ThrustCheck | None = None) -> None:
         self.observed = np.asarray(observed, dtype=int)
         self.imu = np.asarray(imu, dtype=int)
         self.imu_as_input = bool(imu_as_input)
         self.identity = self.imu.size == 0
         self.hold = np.zeros(self.imu.size) if hold is None else np.asarray(hold, dtype=float).copy()
+        self.thrust = thrust
+        """A `ThrustCheck` when the estimator derives the throttle row (held ax, az, airspeed)."""
 
     @classmethod
     def of(cls, estimator: EstimatorConfig, imu_as_input: bool, z_trim: np.ndarray) -> RowSplit:
@@ -54,7 +57,9 @@ class RowSplit:
         imu = [rows.index(r) for r in INPUT_ROWS if r in rows]       # INPUT_ROWS order
         observed = [j for j, r in enumerate(rows) if r not in INPUT_ROWS]
         trim = trim_inputs(z_trim)
-        return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]))
+        thrust = ThrustCheck(estimator.airframe_params()) if estimator.derived_rows else None
+        return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]),
+                   thrust)
 
     def split(self, y: np.ndarray, mask: np.ndarray, u: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -66,9 +71,14 @@ class RowSplit:
         fresh = mask[self.imu] & np.isfinite(y[self.imu])
         self.hold[fresh] = y[self.imu][fresh]
         u = np.asarray(u, dtype=float)[:2]
+        y_obs, mask_obs = y[self.observed], mask[self.observed]
+        if self.thrust is not None:             # hold = [ax, az, airspeed]: the derived throttle row
+            ax, az, V = self.hold
+            y_obs = np.append(y_obs, self.thrust.implied_throttle(ax, az, V, u[0]) - u[1])
+            mask_obs = np.append(mask_obs, bool(fresh[0]))
         if self.imu_as_input:
             u = np.concatenate([u, self.hold])
-        return y[self.observed], mask[self.observed], u
+        return y_obs, mask_obs, u
 
 
 NO_SPLIT = RowSplit(np.zeros(0, dtype=int), np.zeros(0, dtype=int), False)

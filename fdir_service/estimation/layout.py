@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fdir_service.estimator_config import ACTUATORS, EstimatorConfig
+from fdir_service.estimator_config import ACTUATORS, THRUST_ROW, EstimatorConfig
 
 N_AIRFRAME = 5
 """Airframe states in the extended state: [p_d, u, w, theta, q]."""
@@ -74,6 +74,14 @@ class FaultLayout:
         return np.array([self.measurements.index(t) if k == "sensor" and self.type_of(j) != "noisy"
                          else -1 for j, (k, t) in enumerate(zip(self.kinds, self.targets, strict=True))],
                         dtype=int)
+
+    @property
+    def direct_row(self) -> np.ndarray:
+        """(nf,) the derived row that observes each actuator fault's input directly (the throttle
+        row of `thrust.ThrustCheck` for delta_t), -1 for every other fault."""
+        row = self.measurements.index(THRUST_ROW) if THRUST_ROW in self.measurements else -1
+        return np.array([row if k == "actuator" and t == "delta_t" else -1
+                         for k, t in zip(self.kinds, self.targets, strict=True)], dtype=int)
 
     @property
     def noisy_row(self) -> np.ndarray:

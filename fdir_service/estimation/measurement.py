@@ -34,9 +34,10 @@ class MeasurementModel:
         m = len(layout.measurements)
         H = np.zeros((m, layout.n))
         for r, name in enumerate(layout.measurements):
-            col, coef = MEASURED_STATE[name]
-            H[r, col] = coef
-        for j, r in enumerate(layout.sensor_row):
+            if name in MEASURED_STATE:                  # a derived row observes no airframe state
+                col, coef = MEASURED_STATE[name]
+                H[r, col] = coef
+        for j, r in enumerate(np.maximum(layout.sensor_row, layout.direct_row)):
             if r >= 0:
                 H[r, layout.fault_index[j]] = 1.0
         return cls(tuple(layout.measurements), H, np.asarray(sigma, dtype=float).copy())

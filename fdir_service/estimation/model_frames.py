@@ -68,7 +68,7 @@ def _with_input_rows(estimator: EstimatorConfig, y_obs: np.ndarray, z: np.ndarra
         return y_obs
     y = np.empty((y_obs.shape[0], len(rows)))
     obs = [j for j, r in enumerate(rows) if r in estimator.observed]
-    y[:, obs] = y_obs
+    y[:, obs] = y_obs[:, [estimator.observed.index(rows[j]) for j in obs]]   # derived rows: made later
     for j, r in enumerate(rows):
         if r not in estimator.observed:
             steady = np.array([trim_inputs(zk)[r] for zk in z])

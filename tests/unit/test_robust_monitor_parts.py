@@ -149,9 +149,12 @@ def test_kinematic_model_needs_the_accelerometer_rows():
         parse_estimator(doc)
 
 
-def test_kinematic_model_refuses_throttle_faults():
+def test_kinematic_model_sees_the_throttle_only_with_the_pitot():
     doc = _robust_doc()
+    doc["faults"] = doc["faults"][:4]                    # no elevator: only the throttle needs the pitot
     doc["faults"].append({"id": "dt", "target": "delta_t", "unit": "1", "sigma_f": 0.001})
+    assert parse_estimator(doc).derived_rows == ("throttle",)
+    doc["measurements"]["rows"].remove("airspeed")
     with pytest.raises(ConfigError, match="cannot see actuator faults"):
         parse_estimator(doc)
 
