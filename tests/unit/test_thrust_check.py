@@ -1,0 +1,72 @@
+"""The thrust check (fdir_service/estimation/thrust.py): the throttle the accelerometer implies,
+checked against the airframe's own force balance, and the derived row it gives the filters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fdir_service.airframe.dynamics import derivatives_scalar
+from fdir_service.estimation.factory import build_filter, trim_input, trim_state
+from fdir_service.estimation.inputs import G, RowSplit
+from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+from fdir_service.estimation.measurement import MeasurementModel
+from fdir_service.estimation.thrust import ThrustCheck
+from fdir_service.estimator_config import load_estimator
+
+
+@pytest.fixture(scope="module")
+def catalogue():
+    return load_estimator("aerosonde-catalogue")
+
+
+def specific_force(z: np.ndarray, de: float, dt: float, params) -> tuple[float, float]:
+    """[a_x, a_z] (m/s^2) the accelerometer reads in the airframe's own equations at state z (5,)."""
+    _, u, w, th, q = z
+    _, du, dw, _, _ = derivatives_scalar(u, w, th, q, de, dt, params)
+    return du + q * w + G * np.sin(th), dw - q * u - G * np.cos(th)
+
+
+@pytest.mark.parametrize("throttle", [0.3, 0.532, 0.8])
+def test_the_implied_throttle_is_the_one_flown_in_still_air(catalogue, params, throttle):
+    z, (de, _) = trim_state(catalogue), trim_input(catalogue)
+    ax, az = specific_force(z, de, throttle, params)
+    V = float(np.hypot(z[1], z[2]))
+    assert ThrustCheck(params).implied_throttle(ax, az, V, de) == pytest.approx(throttle, abs=0.01)
+
+
+def test_an_engine_that_quits_implies_no_throttle(catalogue, params):
+    z, (de, _) = trim_state(catalogue), trim_input(catalogue)
+    ax, az = specific_force(z, de, 0.0, params)
+    check = ThrustCheck(params)
+    assert check.implied_throttle(ax, az, float(np.hypot(z[1], z[2])), de) < 0.05
+    assert check.implied_throttle(ax - 100.0, az, 40.0, de) == 0.0            # never negative
+
+
+def test_the_derived_row_follows_the_observed_rows_and_a_throttle_fault_adds_to_it(catalogue):
+    assert catalogue.derived_rows == ("throttle",) and catalogue.observed[-1] == "throttle"
+    split = RowSplit.of(catalogue, True, trim_state(catalogue))
+    rows = catalogue.measurements
+    y = np.zeros(len(rows))
+    y[[rows.index(r) for r in ("ax", "az", "airspeed")]] = [0.5, -9.7, 40.0]
+    mask = np.ones(len(rows), bool)
+    y_obs, mask_obs, u = split.split(y, mask, np.array([-0.08, 0.5]))
+    assert y_obs.size == len(catalogue.observed) and mask_obs[-1]
+    assert y_obs[-1] == pytest.approx(split.thrust.implied_throttle(0.5, -9.7, 40.0, -0.08) - 0.5)
+    mask[rows.index("ax")] = False                                              # no fresh IMU: no row
+    assert not split.split(y, mask, np.array([-0.08, 0.5]))[1][-1]
+    layout = FaultLayout.from_estimator(catalogue)
+    meas = MeasurementModel.build(layout, catalogue.observed_sigma())
+    dt = [f.id for f in catalogue.faults].index("dt_eff")
+    assert meas.H[-1, N_AIRFRAME + dt] == 1.0 and not meas.H[-1, :N_AIRFRAME].any()
+
+
+def test_a_throttle_entry_jumps_to_the_throttle_the_row_shows(catalogue):
+    filt = build_filter("RJMRPF", catalogue, np.random.default_rng(0), particles=300)
+    amp = filt.parts.jump.amplitude
+    G_, avail, sigma = amp.gain(np.ones(len(catalogue.observed), bool))
+    for name in ("dt", "dt_eff"):
+        j = [f.id for f in catalogue.faults].index(name)
+        assert avail[j] and G_[j, -1] == 1.0 and sigma[j] == catalogue.settings.thrust_sigma
+    de = [f.id for f in catalogue.faults].index("de")
+    assert avail[de] and np.isfinite(sigma[de])                 # the elevator keeps its own fit
