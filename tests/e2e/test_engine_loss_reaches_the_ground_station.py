@@ -1,0 +1,21 @@
+"""An engine that quits, flown by the simulator speaking as a stock ArduPlane, into `fdir run` with
+the fault catalogue (config/estimators/aerosonde-catalogue.toml), reaches a stock ground station
+as a typed STATUSTEXT ("FDIR dt effectiveness 0% ...") and a typed FDIR_ESTIMATE item."""
+
+from __future__ import annotations
+
+from fdir_service.mavlink import dialect, unpack_fault_types
+from tests.helpers.loopback import fly_into_service
+
+SECONDS = 45.0      # real-engine: the engine quits between 20 and 40 s
+
+
+def test_an_engine_loss_is_announced_in_words_and_typed_on_the_estimate():
+    f = fly_into_service(["--autopilot", "auto", "--estimator", "aerosonde-catalogue"],
+                         ["real-engine", "--profile", "ardupilot", "--speed", "20", "--nav", "truth",
+                          "--duration", str(SECONDS), "--wait", "60"])
+    assert f.service_rc == 0 and "aerosonde-catalogue" in f.service_err, f.service_err
+    texts = [txt for _, _, txt in f.gs.statustexts if txt.startswith("FDIR dt ")]
+    assert any(txt.startswith("FDIR dt effectiveness") for txt in texts), f.gs.statustexts
+    typed = [unpack_fault_types(m.fault_type) for _, m in f.gs.estimates if getattr(m, "fault_type", None)]
+    assert any(dialect.FDIR_FAULT_TYPE_EFFECTIVENESS in codes for codes in typed)
