@@ -237,7 +237,9 @@ def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, me
     faint = estimator.settings.pi10_faint
     exit_ = FaintExit(amp.sigma, faint) if faint > 0 else None
     pairs = sibling_pairs(layout)
-    switch = TypeSwitch(pairs, estimator.settings.pi_switch) if pairs.size else None
+    typed = TypedEvolution(layout, meas.H)
+    switch = TypeSwitch(pairs, estimator.settings.pi_switch, typed, layout.sensor_row) \
+        if pairs.size or typed.stuck.size else None
     jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry, fold, exit_,
                       exit_to_drift=estimator.settings.mode0 == "drift", switch=switch)
     return jump, _sentinel_weighting(estimator, layout, meas, amp, carry)

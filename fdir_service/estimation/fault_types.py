@@ -200,12 +200,47 @@ class TypeSwitch:
     One type per item at a time (`open`): the additive types of an item add the same offset, so a
     particle with two of them in mode 1 could split one fault between them in any proportion.
 
-    pairs (p, 2): `sibling_pairs`; rate: the hand-over probability per step and pair.
+    A stuck sensor that comes back re-anchors the state (`anchor`, `apply_anchor`): half the
+    particles leaving a stuck mode (v < pi10 / 2) move their airframe state so that the row predicts
+    this frame's reading, x += g_r (y_r - h_r z), g_r = h_r^T / |h_r|^2. While the sensor was held,
+    the state it measures was estimated without it (the altitude from GNSS alone, metres off after
+    a climb); without the anchor the returning barometer disagrees with that state and is declared
+    biased until the state has crept back (most false alarms after a stuck barometer).
+
+    pairs (p, 2): `sibling_pairs`; rate: the hand-over probability per step and pair; evolution:
+    the `TypedEvolution` (its stuck entries and their rows' h_r); rows (nf,): each entry's row.
     """
 
-    def __init__(self, pairs: np.ndarray, rate: float) -> None:
+    def __init__(self, pairs: np.ndarray, rate: float, evolution: TypedEvolution | None = None,
+                 rows: np.ndarray | None = None) -> None:
         self.pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
         self.rate = float(rate)
+        self.stuck = evolution.stuck if evolution is not None else np.zeros(0, int)
+        self.stuck_rows = np.asarray(rows, dtype=int)[self.stuck] if self.stuck.size else self.stuck
+        h = evolution.stuck_h if evolution is not None else np.zeros((0, N_AIRFRAME))
+        self.stuck_g = (h / np.maximum((h * h).sum(axis=1, keepdims=True), 1e-300)).T    # (5, k)
+
+    def anchor(self, F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
+               innov: np.ndarray, mask: np.ndarray) -> np.ndarray | None:
+        """Before the jump: (k, N) the reading's distance y_r - h_r z of the stuck particles that
+        will leave and re-anchor (0 elsewhere), or None. innov (m_rows, N): y - H x of the frame's
+        rows (mask (m,)); pi10 (nf, 1) or (nf, N) this step's exit probabilities."""
+        if not self.stuck.size:
+            return None
+        present = mask[self.stuck_rows]
+        if not present.any():
+            return None
+        go = modes[self.stuck] & (v[self.stuck] < 0.5 * pi10[self.stuck]) & present[:, None]
+        if not go.any():
+            return None
+        ri = (np.cumsum(mask) - 1)[self.stuck_rows]
+        dist = innov[np.where(present, ri, 0)] + F[self.stuck]       # y_r - h_r z (the held f out)
+        return np.where(go, dist, 0.0)
+
+    def apply_anchor(self, X: np.ndarray, values: np.ndarray | None) -> None:
+        """After the jump: X[:5] += g values, in place."""
+        if values is not None:
+            X[:N_AIRFRAME] += self.stuck_g @ values
 
     def open(self, available: np.ndarray, modes: np.ndarray) -> np.ndarray:
         """(nf, N) where each fault may enter mode 1 this step: available (nf,) and no other type of

@@ -312,12 +312,14 @@ class MarkovJump:
         reset_to = self.drift.update(F, modes, w) if self.drift is not None else None
         pi10 = self.exit.pi10(F, self.transition.pi10, reset_to)
         folded = self.fold.capture(F, modes, v, pi10, reset_to)
+        anchored = None if self.switch is None else self.switch.anchor(F, modes, v, pi10, innov, frame.mask)
         may = avail if self.switch is None else self.switch.open(avail, modes)
         self.sentinels = jump(F, modes, A, may, self.transition.pi01, pi10, v, self.forced_zero,
                               reset_to)
         self.carry.apply(X, F, carried)
         self.fold.apply(X, folded)
         if self.switch is not None:
+            self.switch.apply_anchor(X, anchored)
             self.switch.apply(F, modes, reset_to, rng)
         return self.transition.log_weight_correction(before, modes, avail)
 

@@ -174,3 +174,23 @@ def test_only_a_bias_folds_into_the_state():
     doc["faults"][2]["type"] = "stuck"                  # theta, on_exit = "reset_or_fold"
     with pytest.raises(ConfigError, match="only a bias"):
         parse_estimator(doc, "x.toml")
+
+
+def test_a_stuck_sensor_that_leaves_mode_1_re_anchors_half_its_particles_on_the_reading():
+    from fdir_service.estimation.fault_types import TypeSwitch, sibling_pairs
+
+    ev = TypedEvolution(LAYOUT, MEAS.H)
+    part = TypeSwitch(sibling_pairs(LAYOUT), 0.0, ev, LAYOUT.sensor_row)
+    X = cloud(3)
+    X[N_AIRFRAME + 1] = 0.02                            # held 0.02 rad above each particle's theta
+    modes = np.zeros((LAYOUT.nf, 3), dtype=bool)
+    modes[1] = True
+    v = np.full((LAYOUT.nf, 3), 0.9)
+    v[1] = [0.001, 0.009, 0.5]              # pi10 = 0.01: anchors (< 0.005), resets, stays
+    y = MEAS.H @ X[:, 0] - X[N_AIRFRAME + 1, 0] + 0.1   # the sensor is back, reading theta + 0.1
+    innov = y[:, None] - MEAS.H @ X
+    vals = part.anchor(X[N_AIRFRAME:], modes, v, np.full((LAYOUT.nf, 1), 0.01), innov, np.ones(3, bool))
+    part.apply_anchor(X, vals)
+    np.testing.assert_allclose(X[3], [0.05 + 0.1, 0.05, 0.05])       # only the first moved, onto it
+    assert part.anchor(X[N_AIRFRAME:], modes, v, np.full((LAYOUT.nf, 1), 0.01), innov,
+                       np.array([True, False, True])) is None         # its row did not arrive
