@@ -50,6 +50,9 @@ UNITLESS_TYPES = ("noisy", "effectiveness")
 ANSWERS: dict[str, tuple[str, ...]] = {"blocked": ("blocked", "stuck")}
 """World type -> the estimator types that answer it rightly (default: the same type only)."""
 MISSED = "missed"
+SETTLE_S = 2.0
+"""The type a declaration names this long after it (the service announces a change of type while
+declared, `FaultTypeChanged`): the `right_settled` figure beside the type at the declaration."""
 GOALS = {"detection_fraction": 0.95, "delay_median_s": 2.0, "right_fraction": 0.90,
          "false_alarms_per_hour": 0.1}
 """The issue's acceptance: >= 95 % detected, median delay <= 2 s, right item and type >= 90 %,
@@ -192,9 +195,14 @@ def typed_episode(t: np.ndarray, dec: np.ndarray, view: ItemView, entries: Seque
     first = first_declared(dec, win, item, view.names)
     entry = int(view.best[win.start + first[0], first[1]]) if first else None
     decl = entries[entry] if first else None
+    settled = None
+    if first:
+        k2 = int(np.searchsorted(t, t[win.start + first[0]] + SETTLE_S))
+        settled = int(view.best[min(k2, t.size - 1), first[1]])
     return {"item": fault.kind.target, "type": fault.kind.type, "detected": k is not None,
             "delay_s": float(t[s + k] - t[s]) if k is not None else None,
             "declared": decl.label() if decl else MISSED, "right": entry is not None and entry in right,
+            "right_settled": settled is not None and settled in right,
             "right_item": decl is not None and decl.target == fault.kind.target,
             "entry": entry if entry in right else (right[0] if right else None)}
 
@@ -241,6 +249,7 @@ def type_row(eps: list[dict]) -> dict:
     return {"episodes": len(eps), "detected": len(delays),
             "detection_fraction": _fraction(eps, "detected"), "delay_s": delay_stats(delays),
             "right_fraction": _fraction(eps, "right"), "right_item_fraction": _fraction(eps, "right_item"),
+            "right_settled_fraction": _fraction(eps, "right_settled"),
             "magnitude_rmse": magnitude_rmse(eps)}
 
 

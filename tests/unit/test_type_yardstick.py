@@ -156,6 +156,7 @@ def test_a_typed_world_is_scored_by_item_and_type_and_reported_per_type():
     assert matching["world_active"].shape == (2, T.size, 1) and matching["prob"].shape == (2, T.size, 3)
     st = by_type["types"]["stuck"]
     assert st["detection_fraction"] == 1.0 and st["right_fraction"] == 0.5
+    assert st["right_settled_fraction"] == 0.5                  # run 1 still says bias 2 s later
     assert st["magnitude_rmse"] == {"m": pytest.approx(1.0)}
     y = {"false_alarms_per_hour": 0.0, "by_type": by_type}
     md = "\n".join(by_type_markdown([("RJMRPF", y)]))
@@ -183,3 +184,14 @@ def test_the_estimators_truth_comes_by_id_in_a_bias_world_and_by_item_and_type_i
              SimpleNamespace(id="pitot", target="airspeed", fault_type="blocked"),
              SimpleNamespace(id="b", target="baro_alt", fault_type="stuck")]
     assert truth_columns(est, typed) == [None, 2, None, 0, 1]
+
+
+def test_a_declaration_whose_type_settles_within_2_s_is_right_2_s_later():
+    sc = _scenario()
+    prob = np.zeros((1, T.size, len(ENTRIES)))
+    prob[0, _between(10.5, 11.5), 0] = 1.0                     # first called biased ...
+    prob[0, _between(11.5, 20.0), 1] = 1.0                     # ... stuck from 11.5 s
+    _, by_type = scenario_yardsticks(sc, T, prob, np.zeros_like(prob),
+                                     np.where(_between(10.0, 20.0), 3.0, 0.0)[None, :, None], np.array([1]))
+    st = by_type["types"]["stuck"]
+    assert st["right_fraction"] == 0.0 and st["right_settled_fraction"] == 1.0
