@@ -271,6 +271,7 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     the noisy rows' likelihood around the correction and their prior draw after the sentinels."""
     if not layout.typed:
         return parts
+    parts.jump.given_fault = True
     evolution = TypedEvolution(layout, meas.H)
     parts.predict = TypedPredict(parts.predict, evolution, layout, meas.H)
     noisy = evolution.noisy

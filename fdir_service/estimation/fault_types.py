@@ -112,16 +112,19 @@ class TypedPredict:
         return Xp
 
     def annotate(self, out: StepOutput) -> None:
-        """out.fault_types, and out.fault_value: a stuck row's held reading f + h_r z, a jammed
-        input's held position f + u, an effectiveness's gain 1 + phi, a noisy row's k = 1 + f."""
+        """out.fault_types, and out.fault_value per type from each entry's fault f (out.fault_value
+        when the jump set it, the mean over the mode-1 particles; else the estimate): a bias f, a
+        stuck row's held reading f + h_r z, a jammed input's held position f + u, an
+        effectiveness's gain 1 + phi, a noisy row's k = 1 + f."""
         out.fault_types = self.layout.types
-        value = out.fault_estimate.copy()
-        ev, x = self.evolution, out.x_mean
-        value[ev.stuck] = x[N_AIRFRAME + ev.stuck] + ev.stuck_h @ x[:N_AIRFRAME]
+        f = (out.fault_value if out.fault_value is not None else out.fault_estimate).copy()
+        value = f.copy()
+        ev, z = self.evolution, out.x_mean[:N_AIRFRAME]
+        value[ev.stuck] = f[ev.stuck] + ev.stuck_h @ z
         if self.u_prev is not None:
-            value[ev.jammed] = x[N_AIRFRAME + ev.jammed] + self.u_prev[ev.jammed_input]
-            value[ev.weak] = 1.0 + ev.gain_loss(x[N_AIRFRAME + ev.weak], self.u_prev[ev.weak_input])
-        value[ev.noisy] = 1.0 + out.fault_estimate[ev.noisy]
+            value[ev.jammed] = f[ev.jammed] + self.u_prev[ev.jammed_input]
+            value[ev.weak] = 1.0 + ev.gain_loss(f[ev.weak], self.u_prev[ev.weak_input])
+        value[ev.noisy] = 1.0 + f[ev.noisy]
         out.fault_value = value
 
 

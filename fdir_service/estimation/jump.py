@@ -290,6 +290,10 @@ class MarkovJump:
         self.exit = exit or ModelExit()
         self.switch = switch
         """None, or a `fault_types.TypeSwitch`: a fault handed to another type of its item."""
+        self.given_fault = False
+        """True (typed estimators): `annotate` sets out.fault_value to each entry's mean over its
+        mode-1 particles (what the fault is, if it is one), before `TypedPredict` words it per type."""
+        self.fault_if_faulty = np.zeros(amplitude.layout.nf)
         nf = amplitude.layout.nf
         self.drift = DriftMemory(nf) if exit_to_drift else None
         """parts.mode0 = "drift": an exit's entry returns to the fault-free value (`DriftMemory`)."""
@@ -332,12 +336,20 @@ class MarkovJump:
         return np.take(modes, idx, axis=1)
 
     def fault_probability(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """P(mode 1) per fault (nf,) (Alg. 4.3)."""
-        return modes @ w
+        """P(mode 1) per fault (nf,) (Alg. 4.3); with `given_fault` on, also keeps each fault
+        entry's mean over its mode-1 particles (`fault_if_faulty`)."""
+        p = modes @ w
+        if self.given_fault:
+            F = X[N_AIRFRAME:]
+            self.fault_if_faulty = np.where(p > 1e-9, np.einsum("jn,jn,n->j", F, modes, w)
+                                            / np.maximum(p, 1e-9), F @ w)
+        return p
 
     def annotate(self, out: StepOutput) -> None:
         """The transition's annotations; under parts.mode0 = "drift" the fault estimate is the
         change from the fault-free value (the drift is the sensor's or the model's error, no fault)."""
         self.transition.annotate(out)
+        if self.given_fault:
+            out.fault_value = self.fault_if_faulty - (self.drift.value if self.drift is not None else 0.0)
         if self.drift is not None:
             out.fault_estimate -= self.drift.value

@@ -45,7 +45,7 @@ def test_an_engine_that_quits_is_declared_within_a_second_with_its_gain_near_zer
     tr, sc = flight("real-engine", "dt_eff", 0.0, 16.0)
     t, kind, g = first_declaration(tr, sc, "delta_t")
     assert ONSET_S <= t < ONSET_S + 1.0
-    assert kind == "effectiveness" and g < 0.2
+    assert kind == "effectiveness" and g < 0.3                  # the true gain is 0
 
 
 @pytest.mark.parametrize("fault_id, amplitude, end_s", [("de_jam", 0.0, 14.0), ("de_eff", 0.3, 18.0)])
