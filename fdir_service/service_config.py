@@ -31,7 +31,7 @@ from fdir_service.estimator_config import (
 from fdir_service.paths import service_path
 from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, Check, TomlTable
 
-STAMPS = ("message", "unwrap32", "latest", "arrival")
+STAMPS = ("message", "unwrap32", "latest", "arrival", "epoch")
 TRANSFORMS = ("none", "negate", "pressure_to_altitude", "pwm", "differential_pressure_to_airspeed")
 RHO_SEA_LEVEL = 1.225
 """kg/m^3: a pitot's differential pressure (Pa) reads as the indicated airspeed sqrt(2 dp / rho_0)."""
@@ -81,7 +81,9 @@ class FieldMap:
     uint32 time_usec that wraps every 71.6 min, unwrapped against the latest stamp seen), "latest"
     (a message without a timestamp, e.g. VFR_HUD: the latest stamp seen on the link) or "arrival"
     (a message whose own stamp lags its arrival, e.g. ArduPilot's GPS_RAW_INT stamped with the fix
-    time: the latest stamp seen, and a repeat of the previous own stamp is dropped)."""
+    time: the latest stamp seen, and a repeat of the previous own stamp is dropped) or "epoch" (as
+    "arrival", but a stamp counting UNIX-epoch time is mapped onto boot time with SYSTEM_TIME
+    (`runtime.clock`) and the message placed there if that frame is not stepped yet)."""
     rate_hz: float = 0.0
     """The rate (Hz) the service asks the autopilot to send `message` at (MAV_CMD_SET_MESSAGE_INTERVAL)
     and expects it at; 0 = the default (`runtime.streams.DEFAULT_RATES_HZ`, else the frame rate)."""

@@ -8,8 +8,9 @@ pressure) and the autopilot's command into MAVLink message objects; `AutopilotLi
   (`fdir run --autopilot none`): ODOMETRY body velocities, SCALED_IMU, ACTUATOR_OUTPUT_STATUS, ...
 - `ardupilot`: ArduPlane's stock set, read by config/autopilots/ardupilot.toml (`fdir run
   --autopilot ardupilot|auto`): HEARTBEAT autopilot 3, ATTITUDE, GLOBAL_POSITION_INT (NED cm/s),
-  GPS_RAW_INT (UNIX-epoch GPS time), SCALED_PRESSURE, RAW_IMU (mG), VFR_HUD (no timestamp),
-  SERVO_OUTPUT_RAW (PWM through ArduPlane's default SERVOn_* parameters), PARAM_VALUE answers.
+  GPS_RAW_INT (UNIX-epoch GPS time), SYSTEM_TIME (1 Hz, SRn_EXTRA3), SCALED_PRESSURE, RAW_IMU (mG),
+  VFR_HUD (no timestamp), SERVO_OUTPUT_RAW (PWM through ArduPlane's default SERVOn_* parameters),
+  PARAM_VALUE answers.
 - `px4`: PX4's Onboard-mode set (MAV_n_MODE = 2), read by config/autopilots/px4.toml (`fdir run
   --autopilot px4|auto`): HEARTBEAT autopilot 12, ATTITUDE, LOCAL_POSITION_NED (NED m/s),
   HIGHRES_IMU (m/s^2, hPa), GPS_RAW_INT (fix time since boot), VFR_HUD, SERVO_OUTPUT_RAW port 0
@@ -382,6 +383,8 @@ GPS_EPOCH_US = 1_750_000_000_000_000
 """ArduPlane's GPS_RAW_INT.time_usec at simulation time 0: UNIX time (us) of 2025-06-15 15:06:40 UTC."""
 ARDUPLANE_AUTO_MODE = 10
 """ArduPlane's custom_mode AUTO."""
+SYSTEM_TIME_PERIOD_S = 1.0
+"""ArduPlane sends SYSTEM_TIME in its SRn_EXTRA3 stream group, at 1 Hz (SRn_EXTRA3 = 1)."""
 
 
 def elevator_pwm_ardupilot(delta_e: float) -> int:
@@ -404,15 +407,31 @@ def throttle_pwm_ardupilot(delta_t: float) -> int:
 class ArduPlaneMessages(_StockAutopilot):
     """ArduPlane's stock streams for the rows the ArduPilot profile reads: ATTITUDE,
     GLOBAL_POSITION_INT (NED cm/s; the measured u, w back to 1 cm/s), RAW_IMU, SCALED_PRESSURE,
-    VFR_HUD, GPS_RAW_INT (UNIX-epoch fix time); SERVO_OUTPUT_RAW through the SERVOn_* defaults."""
+    VFR_HUD, GPS_RAW_INT (UNIX-epoch fix time), SYSTEM_TIME (1 Hz); SERVO_OUTPUT_RAW through the
+    SERVOn_* defaults."""
 
     AUTOPILOT = dialect.MAV_AUTOPILOT_ARDUPILOTMEGA
     CUSTOM_MODE = ARDUPLANE_AUTO_MODE
     PARAMS = ARDUPLANE_SERVO_PARAMS
     GPS_TIME0_US = GPS_EPOCH_US
 
+    def __init__(self, scenario: Scenario, system: int = 1) -> None:
+        super().__init__(scenario, system)
+        self.system_time_due_s = 0.0
+
     def _makers(self) -> tuple:
-        return (self._attitude, self._position, self._imu, self._baro, self._vfr_hud, self._gnss)
+        return (self._attitude, self._position, self._imu, self._baro, self._vfr_hud, self._system_time,
+                self._gnss)
+
+    def _system_time(self, t: float, v: Values, static_pressure_pa: float):
+        """SYSTEM_TIME every SYSTEM_TIME_PERIOD_S (s): time_unix_usec on the GPS clock (GPS_TIME0_US
+        at t = 0), time_boot_ms = t in ms."""
+        if t < self.system_time_due_s - 1e-9:
+            return None
+        periods = 1 + (t - self.system_time_due_s) // SYSTEM_TIME_PERIOD_S
+        self.system_time_due_s += SYSTEM_TIME_PERIOD_S * periods
+        return dialect.MAVLink_system_time_message(self.GPS_TIME0_US + int(round(t * 1e6)),
+                                                   int(round(t * 1000.0)))
 
     def _position(self, t: float, v: Values, static_pressure_pa: float):
         """GLOBAL_POSITION_INT: lat/lon degE7, alt / relative_alt mm, vx/vy/vz cm/s NED, hdg 0 cdeg."""

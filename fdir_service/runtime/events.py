@@ -178,6 +178,33 @@ class FramesMissing(Event):
         return f"{self.missing_s:.2f} s of frames missing (more than max_gap_s): not predicted through"
 
 
+@dataclass(frozen=True)
+class EpochTimeUnmapped(Event):
+    """A `message` stamped in UNIX-epoch time arrived before any SYSTEM_TIME (the epoch - boot
+    offset is unknown): such messages are placed at the latest boot-clock stamp until one arrives.
+    Said once per message type."""
+
+    message: str
+
+    @property
+    def text(self) -> str:
+        return (f"{self.message} stamped in UNIX-epoch time and no SYSTEM_TIME yet: placed at the "
+                "latest stamp until one arrives")
+
+
+@dataclass(frozen=True)
+class EpochOffsetJumped(Event):
+    """SYSTEM_TIME's epoch - boot offset moved by `jump_s` (s; a GPS time correction, an RTC set):
+    the new offset is taken."""
+
+    jump_s: float
+    level: ClassVar[str] = "warning"
+
+    @property
+    def text(self) -> str:
+        return f"SYSTEM_TIME: UNIX time moved {self.jump_s:+.3f} s against boot time: new offset taken"
+
+
 # ---------------------------------------------------------------------------- health
 
 class Cause(Enum):

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fdir_service.runtime.clock import SYSTEM_TIME, EpochClock
 from fdir_service.runtime.derived import SourceCache, derive_value
 from fdir_service.runtime.events import (
     Event,
@@ -276,15 +277,18 @@ class FrameAssembler:
         self.sources = SourceCache(dict(config.parameters))
         self.stamps = {fm.message: fm.stamp for fm in maps if fm.stamp != "message"}
         self.latest_us: int | None = None
-        self._own_stamps: dict[str, int] = {}   # stamp = "arrival": each type's last own stamp
+        self._own_stamps: dict[str, int] = {}   # stamp = "arrival" / "epoch": each type's last own stamp
+        self.clock = EpochClock(self.events)   # stamp = "epoch": UNIX-epoch stamps -> boot time
+        self.clock_messages = frozenset({SYSTEM_TIME} if "epoch" in self.stamps.values() else ())
 
     @staticmethod
     def _kind(fm: FieldMap) -> str:
         return fm.message + "".join(f"|{k}={v:g}" for k, v in fm.where)
 
     def is_mapped(self, msg_type: str) -> bool:
-        """Whether any measurement row or input channel reads this message type."""
-        return msg_type in self.by_message
+        """Whether any measurement row or input channel reads this message type (or, with a
+        stamp = "epoch" row, it is SYSTEM_TIME)."""
+        return msg_type in self.by_message or msg_type in self.clock_messages
 
     # ------------------------------------------------------------------ time
     def frame_index(self, t_us: int) -> int:
@@ -326,20 +330,21 @@ class FrameAssembler:
         self.first_time_us = None
         self.sources.forget_time()
         self.latest_us = None
+        self.clock.forget()
         self._restart = True
 
     # ------------------------------------------------------------------ messages
     def accept(self, msg) -> list[AssembledFrame]:
         """Take one decoded message; return the frames it completes (oldest first)."""
         mtype = msg.get_type()
-        if mtype in self.observed:
-            self.sources.observe(msg, message_time_us(msg))
+        self._observe(msg, mtype)
         routes = self.by_message.get(mtype)
         if not routes:
             return []
-        t_us = self._time_us(msg, mtype)
-        if t_us is None:
+        stamped = self._time_us(msg, mtype)
+        if stamped is None:
             return []
+        t_us, borrowed = stamped
         is_meas = self.plain.get(mtype)
         matched = routes if is_meas is not None else self._matching(msg, routes)
         if not matched:
@@ -348,7 +353,7 @@ class FrameAssembler:
         if is_meas is None:
             is_meas = any(r.kind == "y" for r in matched)
         k = (t_us + self.period_us // 2) // self.period_us   # frame_index(t_us)
-        if not self._placed(k, t_us, mtype):
+        if not self._placed(k, t_us, borrowed):
             return []
         self._take_inputs(msg, matched, k, t_us)
         if self.last_index is not None and k <= self.last_index:
@@ -360,11 +365,18 @@ class FrameAssembler:
             out += self._take_measurements(msg, matched, k, t_us)
         return out
 
-    def _placed(self, k: int, t_us: int, mtype: str) -> bool:
+    def _observe(self, msg, mtype: str) -> None:
+        """A derivation's source message into the source cache; SYSTEM_TIME into the epoch clock."""
+        if mtype in self.observed:
+            self.sources.observe(msg, message_time_us(msg))
+        if mtype in self.clock_messages:
+            self.clock.observe(msg)
+
+    def _placed(self, k: int, t_us: int, borrowed: bool) -> bool:
         """Whether frame k is in the clock (`_in_clock`); the latest stamp moves on. A message with a
-        borrowed stamp (stamp = "latest") is in the clock by construction and plays no part in
+        borrowed stamp (the latest stamp seen) is in the clock by construction and plays no part in
         confirming a time jump."""
-        if self.stamps.get(mtype) in ("latest", "arrival"):
+        if borrowed:
             return True
         if not self._in_clock(k):
             return False
@@ -372,29 +384,55 @@ class FrameAssembler:
             self.latest_us = t_us
         return True
 
-    def _time_us(self, msg, mtype: str) -> int | None:
-        """The message's time (us) by its mapping's `stamp`: its own, unwrapped, or borrowed (the
-        latest stamp seen); None (counted) when it has none or repeats the sample before it."""
+    def _time_us(self, msg, mtype: str) -> tuple[int, bool] | None:
+        """(time us, borrowed) of the message by its mapping's `stamp`: its own, unwrapped, mapped
+        from UNIX-epoch time, or borrowed (the latest stamp seen: borrowed = True); None (counted)
+        when it has none or repeats the sample before it."""
         stamp = self.stamps.get(mtype)
-        t = message_time_us(msg) if stamp != "latest" else self.latest_us
+        if stamp == "latest":
+            return self._borrowed()
+        t = message_time_us(msg)
         if t is None:
             self.rejected.add(NO_TIMESTAMP)
-        elif stamp == "unwrap32" and self.latest_us is not None:
+            return None
+        if stamp in ("arrival", "epoch") and self._repeated(mtype, t):
+            return None
+        if stamp == "arrival":
+            return self._borrowed()
+        if stamp == "epoch":
+            return self._epoch(mtype, t)
+        if stamp == "unwrap32" and self.latest_us is not None:
             t = unwrap32(t, self.latest_us)
-        elif stamp == "arrival":
-            t = self._arrival(mtype, t)
-        return t
+        return t, False
 
-    def _arrival(self, mtype: str, own_us: int) -> int | None:
-        """stamp = "arrival": the latest stamp seen, unless the message repeats its previous own stamp
-        (the same sample sent again: dropped, counted)."""
+    def _repeated(self, mtype: str, own_us: int) -> bool:
+        """Whether the message repeats its type's previous own stamp (us): the same sample sent
+        again (dropped, counted)."""
         if self._own_stamps.get(mtype) == own_us:
             self.rejected.add(Rejected("repeated sample", mtype))
-            return None
+            return True
         self._own_stamps[mtype] = own_us
+        return False
+
+    def _borrowed(self) -> tuple[int, bool] | None:
+        """(the latest stamp seen (us), True); None (counted) before any stamped message."""
         if self.latest_us is None:
             self.rejected.add(NO_TIMESTAMP)
-        return self.latest_us
+            return None
+        return self.latest_us, True
+
+    def _epoch(self, mtype: str, own_us: int) -> tuple[int, bool] | None:
+        """stamp = "epoch": the own stamp (us) on the boot clock (`EpochClock.boot_us`) if its frame
+        has not been stepped yet; else, before any SYSTEM_TIME or before boot, the latest stamp seen
+        (as "arrival": a sample sent up to a stream period after it was taken is not dropped as late)."""
+        boot = self.clock.boot_us(own_us, mtype)
+        if boot is None or boot < 0 or self._stepped(boot):
+            return self._borrowed()
+        return boot, False
+
+    def _stepped(self, t_us: int) -> bool:
+        """Whether the frame of time t_us (us) has already been stepped."""
+        return self.last_index is not None and self.frame_index(t_us) <= self.last_index
 
     def _value(self, msg, r: Route, t_us: int) -> float | None:
         """Route r's SI value of the message (read or derived) if valid; None (counted) if not."""

@@ -10,6 +10,8 @@ import pytest
 from fdir_service.runtime.events import (
     OPERATOR_REASONS,
     Cause,
+    EpochOffsetJumped,
+    EpochTimeUnmapped,
     FaultCleared,
     FaultDeclared,
     FilterStepFailed,
@@ -65,6 +67,10 @@ def test_events_are_frozen_values_compared_by_fields():
      "autopilot time jumped forward from 1.00 s to 3600.00 s: restarting the frame clock", True),
     (FramesMissing(3.5), "warning", "3.50 s of frames missing (more than max_gap_s): not predicted through",
      False),
+    (EpochTimeUnmapped("GPS_RAW_INT"), "info", "GPS_RAW_INT stamped in UNIX-epoch time and no SYSTEM_TIME "
+     "yet: placed at the latest stamp until one arrives", False),
+    (EpochOffsetJumped(-2.01), "warning",
+     "SYSTEM_TIME: UNIX time moved -2.010 s against boot time: new offset taken", False),
     (OtherSystemIgnored(2, 1), "warning", "ignoring system 2 on the link (following system 1)", False),
     (RejectionSummary(5, (("duplicate", 3), ("mavlink1", 2))), "warning",
      "rejected input (5 so far): duplicate 3, mavlink1 2", False),
