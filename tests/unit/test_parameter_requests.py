@@ -5,6 +5,7 @@ validation. Time is passed in (s); the autopilot's answers are PARAM_VALUE messa
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import pytest
 
@@ -13,7 +14,7 @@ from fdir_service.errors import ConfigError
 from fdir_service.mavlink import dialect
 from fdir_service.runtime.events import ParametersRequested
 from fdir_service.runtime.params import ParamRequester, expand, first_requests
-from fdir_service.service_config import StreamConfig, load_service_config
+from fdir_service.service_config import ServiceConfig, StreamConfig, load_service_config
 
 ARDUPILOT = apply_profile(load_service_config(), "ardupilot")
 PX4 = apply_profile(load_service_config(), "px4")
@@ -156,6 +157,25 @@ def test_the_profiles_parameter_requests_are_validated(table, wrong):
 
 @pytest.mark.parametrize("value_text", ["0", "33", "true"])
 def test_parameters_in_flight_is_validated(value_text):
-    text = load_service_config().text.replace("parameters_in_flight = 4", f"parameters_in_flight = {value_text}")
+    text = load_service_config().text.replace("parameters_in_flight = 4",
+                                              f"parameters_in_flight = {value_text}")
     with pytest.raises(ConfigError, match="parameters_in_flight"):
-        type(load_service_config()).from_toml_text(text)
+        ServiceConfig.from_toml_text(text)
+
+
+def test_the_simulated_arduplane_outputs_and_answers_follow_its_parameters():
+    from sim_bridge.profiles import ARDUPLANE_SERVO_PARAMS, ArduPlaneMessages, make_message_set
+    from sim_bridge.scenario import load_scenario
+
+    scenario = load_scenario("real-calm-faultfree")
+    moved = ArduPlaneMessages(scenario, params={"SERVO2_FUNCTION": 4, "SERVO5_FUNCTION": 19,
+                                                "SERVO5_REVERSED": 1})
+    stock = ArduPlaneMessages(scenario)
+    up = math.radians(-12.5)                                   # trailing edge up: half the travel nose-up
+    assert stock._servos(up, 0.5)[:5] == [1500, 1700, 1500, 1500, 0]
+    assert moved._servos(up, 0.5)[:5] == [1500, 1500, 1500, 1500, 1300]   # reversed on output 5
+    assert moved.PARAMS["SERVO5_FUNCTION"] == (19, ARDUPLANE_SERVO_PARAMS["SERVO5_FUNCTION"][1])
+    with pytest.raises(ValueError, match="SERVO17_MIN"):
+        ArduPlaneMessages(scenario, params={"SERVO17_MIN": 1000})
+    with pytest.raises(ValueError, match="only the ardupilot profile"):
+        make_message_set("px4", scenario, params={"PWM_MAIN_REV": 4})
