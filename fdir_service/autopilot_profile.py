@@ -5,9 +5,10 @@ A profile holds `[autopilot]` (its `heartbeat_autopilot`: the MAV_AUTOPILOT valu
 autopilot's HEARTBEAT, used by `--autopilot auto`), `[measurements.<row>]` and `[inputs.<name>]`
 tables exactly like the service file's (plus derived rows: `derive`, `sources`, see
 `runtime.derived`, and `stamp`), and `[parameters]`: the autopilot parameter values assumed until
-the autopilot's PARAM_VALUE says otherwise. Applied, it replaces the service file's
-`[measurements]` and `[inputs]`; everything else (link, frames, publishing, health) stays the
-service file's. Errors name the profile file and the key.
+the autopilot's PARAM_VALUE says otherwise, and `[parameter_requests]`: which further parameters
+the service asks the autopilot for (`names`, `channel`; `runtime.params`). Applied, it replaces
+the service file's `[measurements]` and `[inputs]`; everything else (link, frames, publishing,
+health) stays the service file's. Errors name the profile file and the key.
 
 Choices: "none" (the service file's own mapping), "auto" (the service file's mapping is replaced
 once the autopilot's first HEARTBEAT names an autopilot with a profile in `AUTO_PROFILES`; no
@@ -82,10 +83,36 @@ def _apply(config: ServiceConfig, name: str, text: str) -> ServiceConfig:
     pt = root.sub("parameters")
     params = tuple((k, pt.take(k, "number")) for k in pt.keys())
     pt.finish()
+    names, channel = _parameter_requests(root.sub("parameter_requests"))
     root.finish()
     return dataclasses.replace(config, measurements=measurements, inputs=inputs, parameters=params,
+                               parameter_requests=names, parameter_channel_requests=channel,
                                autopilot=name, auto_profiles=(),
                                profile_texts=((name, text),))
+
+
+def _pattern_ok(pattern: str, placeholders: tuple[str, ...]) -> bool:
+    """Whether a parameter name pattern holds at most one of `placeholders` and, with the widest
+    number in place, fits PARAM_REQUEST_READ's 16 characters."""
+    used = [p for p in ("{n}", "{i}") if p in pattern]
+    if len(used) > 1 or any(p not in placeholders for p in used) or "{" in pattern.replace(
+            used[0] if used else "{}", ""):
+        return False
+    wide = pattern.replace("{n}", "16").replace("{i}", "7")
+    return 0 < len(wide) <= 16 and wide.isascii()
+
+
+def _parameter_requests(pr: TomlTable) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """`[parameter_requests]`: (names, channel) patterns (`runtime.params`)."""
+    names = pr.take("names", "strings", (), check=Check(
+        lambda v: all(_pattern_ok(x, ("{n}", "{i}")) for x in v),
+        "parameter names of up to 16 characters, optionally with one {n} (outputs 1..16) or {i} "
+        "(control surfaces 0..7)"))
+    channel = pr.take("channel", "strings", (), check=Check(
+        lambda v: all("{n}" in x and _pattern_ok(x, ("{n}",)) for x in v),
+        "parameter names of up to 16 characters with {n} (the input's output channel)"))
+    pr.finish()
+    return tuple(names), tuple(channel)
 
 
 def select_autopilot(config: ServiceConfig, choice: str,

@@ -12,6 +12,9 @@ MAV_CMD_SET_MESSAGE_INTERVAL at a time, sent on the autopilot link only; COMMAND
 retries run on the wall clock here, never in the pipeline. Each outcome is logged and told to the
 pipeline (quoted when a message never arrives); if no frame was ever stepped once the requests are
 settled and `streams.window_s` of wall time has passed, the pipeline reports the missing messages.
+With an autopilot profile (`[streams] parameters`) the same HEARTBEAT starts the parameter
+requests (`runtime.params`: PARAM_REQUEST_READ by name, a few in flight, retried on the same
+timeout); once settled, who answered and who stays at the profile's default is logged.
 
 Link supervision: no input bytes for `health.link_timeout_s` of wall time after input had
 started = link lost (STATUSTEXT, HEARTBEAT CRITICAL); the first bytes after it = restored.
@@ -33,6 +36,7 @@ from collections.abc import Callable
 
 from fdir_service.mavlink import dialect
 from fdir_service.pipeline import Pipeline
+from fdir_service.runtime.params import ParamRequester
 from fdir_service.runtime.streams import StreamRequester, wanted_rates
 
 DRAIN_BACKLOG = 64
@@ -104,6 +108,7 @@ class StreamLink:
         self.log = log
         self.config = pipeline.config.streams
         self.requester: StreamRequester | None = None
+        self.params: ParamRequester | None = None
         self.heard = False
         self.silence_due: float | None = None   # when to check for "no frame at all" (s)
 
@@ -115,14 +120,17 @@ class StreamLink:
             m = msgs.popleft()
             if m.get_type() == "HEARTBEAT":
                 out += self._start(m, now)
+            elif m.get_type() == "PARAM_VALUE":
+                out += self.params.on_value(m, now) if self.params is not None else []
             elif self.requester is not None and self._for_us(m):
                 out += self.requester.on_ack(m, now)
         self._send(out)
 
     def poll(self, now: float) -> None:
         """Now and then: resend or give up unanswered requests; report streams if no frame ever came."""
-        if self.requester is not None:
-            self._send(self.requester.poll(now))
+        for requester in (self.requester, self.params):
+            if requester is not None:
+                self._send(requester.poll(now))
         done = self.requester is None or self.requester.done
         if self.silence_due is not None and done and now >= self.silence_due:
             self.silence_due = None
@@ -135,10 +143,22 @@ class StreamLink:
             return []
         self.heard = True
         self.silence_due = now + self.config.window_s
+        return self._start_streams(hb, now) + self._start_params(hb, now)
+
+    def _start_streams(self, hb, now: float) -> list:
+        """The stream requests (`[streams] request`) for the mapping now in force."""
         if not self.config.request:
             return []
         self.requester = StreamRequester(self.config, wanted_rates(self.pipeline.assembler.config))
         return self.requester.start(hb.get_srcSystem(), hb.get_srcComponent(), int(hb.autopilot), now)
+
+    def _start_params(self, hb, now: float) -> list:
+        """The parameter requests (`[streams] parameters`) of the profile now in force, if any."""
+        config = self.pipeline.assembler.config
+        if not self.config.parameters or config.autopilot in ("none", "auto"):
+            return []
+        self.params = ParamRequester(self.config, config)
+        return self.params.start(hb.get_srcSystem(), hb.get_srcComponent(), now)
 
     def _for_us(self, ack) -> bool:
         """Whether a COMMAND_ACK is addressed to us (or to nobody in particular)."""
@@ -156,6 +176,10 @@ class StreamLink:
                 self.pipeline.stream_outcome(o, t_ns)
                 self.log(f"fdir: stream request {o.message} every {o.interval_us} us: {o.outcome}")
             self.requester.outcomes.clear()
+        if self.params is not None and self.params.report is not None:
+            report, self.params.report = self.params.report, None
+            self.pipeline.parameters_outcome(report, t_ns)
+            self.log(f"fdir: {report.text}")
 
 
 class Daemon:

@@ -162,6 +162,9 @@ class StreamConfig:
     wait for a COMMAND_ACK before sending again; retries: how many times to send again (then "no
     answer"). window_s: frame time over which each message's arrival rate is measured; min_fraction:
     a message arriving below this fraction of its wanted rate is reported slow.
+    parameters: with an autopilot profile, after that HEARTBEAT also ask for the parameters the
+    profile reads (PARAM_REQUEST_READ, `runtime.params`; unanswered ones are sent again after
+    ack_timeout_s, `retries` times); parameters_in_flight: at most this many unanswered at a time.
     """
 
     request: bool = True
@@ -169,6 +172,8 @@ class StreamConfig:
     retries: int = 2
     window_s: float = 5.0
     min_fraction: float = 0.8
+    parameters: bool = True
+    parameters_in_flight: int = 4
 
 
 @dataclass(frozen=True)
@@ -215,6 +220,12 @@ class ServiceConfig:
     file's mapping until the autopilot's HEARTBEAT picks one of `auto_profiles`)."""
     parameters: tuple[tuple[str, float], ...] = ()
     """The profile's autopilot parameter defaults (name, value); PARAM_VALUE messages replace them."""
+    parameter_requests: tuple[str, ...] = ()
+    """The profile's `[parameter_requests] names`: asked of the autopilot besides `parameters`
+    (`{n}`: every servo output 1..16, `{i}`: every PX4 control surface 0..7)."""
+    parameter_channel_requests: tuple[str, ...] = ()
+    """The profile's `[parameter_requests] channel`: asked for each output channel `{n}` an input
+    reads (found once the names above are answered)."""
     auto_profiles: tuple[tuple[int, ServiceConfig], ...] = ()
     """For "auto": (HEARTBEAT.autopilot, the config with that profile applied)."""
     profile_texts: tuple[tuple[str, str], ...] = ()
@@ -425,6 +436,9 @@ def _streams(st: TomlTable) -> StreamConfig:
         window_s=st.take("window_s", "number", 5.0, check=POSITIVE.saying("a positive time (s)")),
         min_fraction=st.take("min_fraction", "number", 0.8,
                              check=Check(lambda v: 0 < v <= 1, "a fraction in (0, 1]")),
+        parameters=st.take("parameters", "boolean", True),
+        parameters_in_flight=st.take("parameters_in_flight", "integer", 4,
+                                     check=Check(lambda v: 1 <= v <= 32, "a number of requests 1..32")),
     )
     st.finish()
     return cfg

@@ -36,14 +36,16 @@ class AutopilotLink:
     """Encodes the simulator's frames as an autopilot's MAVLink 2 stream and decodes replies.
 
     system/component: the autopilot's ids; key: optional 32-byte signing key; profile: the message
-    set on the wire (`sim_bridge.profiles`: "native", the default, "ardupilot" or "px4").
+    set on the wire (`sim_bridge.profiles`: "native", the default, "ardupilot" or "px4"); params:
+    parameter values that differ from the profile's defaults (ardupilot: its SERVOn_*).
     """
 
     def __init__(self, scenario: Scenario, system: int = 1, component: int = 1,
-                 key: bytes | None = None, signing_timestamp: int = 0, profile: str = "native") -> None:
+                 key: bytes | None = None, signing_timestamp: int = 0, profile: str = "native",
+                 params: dict[str, float] | None = None) -> None:
         self.scenario = scenario
         self.rows = {name: j for j, name in enumerate(scenario.sensors.measurements)}
-        self.messages = make_message_set(profile, scenario, system)
+        self.messages = make_message_set(profile, scenario, system, params)
         self.profile = profile
         self.tx = new_mavlink(system, component, key=key, initial_timestamp=signing_timestamp)
         self.rx = new_mavlink(255, 0, key=key)

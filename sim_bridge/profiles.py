@@ -8,9 +8,15 @@ pressure) and the autopilot's command into MAVLink message objects; `AutopilotLi
   (`fdir run --autopilot none`): ODOMETRY body velocities, SCALED_IMU, ACTUATOR_OUTPUT_STATUS, ...
 - `ardupilot`: ArduPlane's stock set, read by config/autopilots/ardupilot.toml (`fdir run
   --autopilot ardupilot|auto`): HEARTBEAT autopilot 3, ATTITUDE, GLOBAL_POSITION_INT (NED cm/s),
+<<<<<<< HEAD
   GPS_RAW_INT (UNIX-epoch GPS time), SYSTEM_TIME (1 Hz, SRn_EXTRA3), SCALED_PRESSURE, RAW_IMU (mG),
   VFR_HUD (no timestamp), SERVO_OUTPUT_RAW (PWM through ArduPlane's default SERVOn_* parameters),
   PARAM_VALUE answers.
+=======
+  GPS_RAW_INT (UNIX-epoch GPS time), SCALED_PRESSURE, RAW_IMU (mG), VFR_HUD (no timestamp),
+  SERVO_OUTPUT_RAW (PWM through its SERVOn_* parameters: ArduPlane's defaults, or `--param`
+  overrides), PARAM_VALUE answers (only when asked, as a stock ArduPlane).
+>>>>>>> p16-params
 - `px4`: PX4's Onboard-mode set (MAV_n_MODE = 2), read by config/autopilots/px4.toml (`fdir run
   --autopilot px4|auto`): HEARTBEAT autopilot 12, ATTITUDE, LOCAL_POSITION_NED (NED m/s),
   HIGHRES_IMU (m/s^2, hPa), GPS_RAW_INT (fix time since boot), VFR_HUD, SERVO_OUTPUT_RAW port 0
@@ -57,12 +63,16 @@ class MessageSet(Protocol):
     def answer(self, msg) -> list: ...
 
 
-def make_message_set(profile: str, scenario: Scenario, system: int = 1) -> MessageSet:
-    """The message set of `profile` ("native" | "ardupilot" | "px4") for a scenario; ValueError otherwise."""
+def make_message_set(profile: str, scenario: Scenario, system: int = 1,
+                     params: dict[str, float] | None = None) -> MessageSet:
+    """The message set of `profile` ("native" | "ardupilot" | "px4") for a scenario; ValueError
+    otherwise. `params`: parameter values that differ from the autopilot's defaults (ardupilot only)."""
+    if params and profile != "ardupilot":
+        raise ValueError(f"--param: only the ardupilot profile takes parameters, not {profile!r}")
     if profile == "native":
         return NativeMessages()
     if profile == "ardupilot":
-        return ArduPlaneMessages(scenario, system)
+        return ArduPlaneMessages(scenario, system, params)
     if profile == "px4":
         return PX4Messages(scenario, system)
     raise ValueError(f"--profile: expected one of {', '.join(PROFILES)}, got {profile!r}")
@@ -361,23 +371,32 @@ class _StockAutopilot:
 
 # ------------------------------------------------------------------------------ ArduPlane
 
+_INT16, _INT8 = dialect.MAV_PARAM_TYPE_INT16, dialect.MAV_PARAM_TYPE_INT8
+ARDUPLANE_FUNCTIONS = {1: 4, 2: 19, 3: 70, 4: 21}
+"""ArduPlane's default SERVOn_FUNCTION: aileron, elevator, throttle, rudder (other outputs 0: disabled)."""
 ARDUPLANE_SERVO_PARAMS: Params = {
-    # name: (value, MAV_PARAM_TYPE): ArduPlane's defaults (SRV_Channel: FUNCTION AP_Int16, MIN / TRIM /
-    # MAX AP_Int16, REVERSED AP_Int8); ArduPilot sends integers as their float value
-    "SERVO1_FUNCTION": (4, dialect.MAV_PARAM_TYPE_INT16),     # aileron
-    "SERVO2_FUNCTION": (19, dialect.MAV_PARAM_TYPE_INT16),    # elevator
-    "SERVO3_FUNCTION": (70, dialect.MAV_PARAM_TYPE_INT16),    # throttle
-    "SERVO4_FUNCTION": (21, dialect.MAV_PARAM_TYPE_INT16),    # rudder
-    "SERVO2_MIN": (1100, dialect.MAV_PARAM_TYPE_INT16),
-    "SERVO2_TRIM": (1500, dialect.MAV_PARAM_TYPE_INT16),
-    "SERVO2_MAX": (1900, dialect.MAV_PARAM_TYPE_INT16),
-    "SERVO2_REVERSED": (0, dialect.MAV_PARAM_TYPE_INT8),
-    "SERVO3_MIN": (1100, dialect.MAV_PARAM_TYPE_INT16),
-    "SERVO3_TRIM": (1500, dialect.MAV_PARAM_TYPE_INT16),
-    "SERVO3_MAX": (1900, dialect.MAV_PARAM_TYPE_INT16),
-    "SERVO3_REVERSED": (0, dialect.MAV_PARAM_TYPE_INT8),
+    # name: (value, MAV_PARAM_TYPE): ArduPlane's defaults for all 16 outputs (SRV_Channel: FUNCTION,
+    # MIN / TRIM / MAX AP_Int16, REVERSED AP_Int8); ArduPilot sends integers as their float value
+    **{f"SERVO{n}_FUNCTION": (ARDUPLANE_FUNCTIONS.get(n, 0), _INT16) for n in range(1, SERVO_OUTPUTS + 1)},
+    **{f"SERVO{n}_{kind}": (value, ptype) for n in range(1, SERVO_OUTPUTS + 1) for kind, value, ptype in (
+        ("MIN", 1100, _INT16), ("TRIM", 1500, _INT16), ("MAX", 1900, _INT16), ("REVERSED", 0, _INT8))},
 }
-"""The SERVOn_* parameters the simulated ArduPlane uses and answers PARAM_REQUEST_* with."""
+"""The SERVOn_* parameters the simulated ArduPlane uses and answers PARAM_REQUEST_* with (its
+defaults; `sim-bridge fly --param NAME=VALUE` overrides them)."""
+ARDUPLANE_ELEVATOR, ARDUPLANE_THROTTLE = 19, 70
+"""SERVOn_FUNCTION of the elevator and the throttle."""
+
+
+def with_overrides(params: Params, overrides: dict[str, float] | None) -> Params:
+    """`params` with some values replaced (their MAV_PARAM_TYPE kept); ValueError for an unknown name."""
+    out = dict(params)
+    for name, value in (overrides or {}).items():
+        if name not in out:
+            raise ValueError(f"--param {name}: not a parameter of this autopilot "
+                             f"(e.g. {', '.join(list(out)[:3])}, ...)")
+        out[name] = (int(value), out[name][1])
+    return out
+
 
 GPS_EPOCH_US = 1_750_000_000_000_000
 """ArduPlane's GPS_RAW_INT.time_usec at simulation time 0: UNIX time (us) of 2025-06-15 15:06:40 UTC."""
@@ -387,37 +406,38 @@ SYSTEM_TIME_PERIOD_S = 1.0
 """ArduPlane sends SYSTEM_TIME in its SRn_EXTRA3 stream group, at 1 Hz (SRn_EXTRA3 = 1)."""
 
 
-def elevator_pwm_ardupilot(delta_e: float) -> int:
-    """delta_e (rad, + = trailing edge down) -> SERVO2 PWM (us) with ArduPlane's defaults.
+def ardupilot_output_pwm(function: int, value: float, p: Params, n: int) -> int:
+    """Output n's PWM (us) with its SERVOn_* parameters `p`: the elevator (function 19) from
+    value = delta_e (rad, + = trailing edge down), the throttle (70) from value = delta_t (0..1),
+    another function at TRIM, a disabled output (0) 0.
 
     ArduPilot's positive elevator output is nose-up (trailing edge up, = -delta_e), a fraction of
-    the travel (ELEVATOR_TRAVEL_RAD, 25 deg) mapped with SERVO2_MIN / TRIM / MAX (`angle_pwm`).
-    """
-    p = ARDUPLANE_SERVO_PARAMS
-    return angle_pwm(-delta_e / ELEVATOR_TRAVEL_RAD, p["SERVO2_MIN"][0], p["SERVO2_TRIM"][0],
-                     p["SERVO2_MAX"][0])
-
-
-def throttle_pwm_ardupilot(delta_t: float) -> int:
-    """Throttle (0..1) -> SERVO3 PWM (us): MIN + delta_t * (MAX - MIN), clipped, 1 us steps."""
-    p = ARDUPLANE_SERVO_PARAMS
-    return range_pwm(delta_t, p["SERVO3_MIN"][0], p["SERVO3_MAX"][0])
+    the travel (ELEVATOR_TRAVEL_RAD, 25 deg), negated when REVERSED, mapped with MIN / TRIM / MAX
+    (`angle_pwm`, SRV_Channel::pwm_from_angle); the throttle MIN .. MAX (MAX .. MIN reversed)."""
+    lo, trim, hi, rev = (p[f"SERVO{n}_{k}"][0] for k in ("MIN", "TRIM", "MAX", "REVERSED"))
+    if function == ARDUPLANE_ELEVATOR:
+        frac = -value / ELEVATOR_TRAVEL_RAD
+        return angle_pwm(-frac if rev else frac, lo, trim, hi)
+    if function == ARDUPLANE_THROTTLE:
+        return range_pwm(1.0 - value if rev else value, lo, hi)
+    return 0 if function == 0 else int(trim)
 
 
 class ArduPlaneMessages(_StockAutopilot):
     """ArduPlane's stock streams for the rows the ArduPilot profile reads: ATTITUDE,
     GLOBAL_POSITION_INT (NED cm/s; the measured u, w back to 1 cm/s), RAW_IMU, SCALED_PRESSURE,
-    VFR_HUD, GPS_RAW_INT (UNIX-epoch fix time), SYSTEM_TIME (1 Hz); SERVO_OUTPUT_RAW through the
-    SERVOn_* defaults."""
+    VFR_HUD, GPS_RAW_INT (UNIX-epoch fix time), SYSTEM_TIME (1 Hz); SERVO_OUTPUT_RAW through its
+    SERVOn_* parameters (ArduPlane's defaults with `params` overriding some)."""
 
     AUTOPILOT = dialect.MAV_AUTOPILOT_ARDUPILOTMEGA
     CUSTOM_MODE = ARDUPLANE_AUTO_MODE
     PARAMS = ARDUPLANE_SERVO_PARAMS
     GPS_TIME0_US = GPS_EPOCH_US
 
-    def __init__(self, scenario: Scenario, system: int = 1) -> None:
+    def __init__(self, scenario: Scenario, system: int = 1, params: dict[str, float] | None = None) -> None:
         super().__init__(scenario, system)
         self.system_time_due_s = 0.0
+        self.PARAMS = with_overrides(ARDUPLANE_SERVO_PARAMS, params)
 
     def _makers(self) -> tuple:
         return (self._attitude, self._position, self._imu, self._baro, self._vfr_hud, self._system_time,
@@ -459,8 +479,15 @@ class ArduPlaneMessages(_StockAutopilot):
         return NativeMessages._baro(t, v, static_pressure_pa)
 
     def _servos(self, delta_e: float, delta_t: float) -> list[int]:
-        """SERVO1 aileron and SERVO4 rudder at trim, SERVO2 elevator, SERVO3 throttle (PWM us)."""
-        return [1500, elevator_pwm_ardupilot(delta_e), throttle_pwm_ardupilot(delta_t), 1500] + [0] * 12
+        """Each output by its SERVOn_FUNCTION (`ardupilot_output_pwm`; defaults: SERVO1 aileron and
+        SERVO4 rudder at trim, SERVO2 elevator, SERVO3 throttle, 5..16 disabled: 0), PWM us."""
+        value = {ARDUPLANE_ELEVATOR: delta_e, ARDUPLANE_THROTTLE: delta_t}
+        p = self.PARAMS
+        out = []
+        for n in range(1, SERVO_OUTPUTS + 1):
+            function = p[f"SERVO{n}_FUNCTION"][0]
+            out.append(ardupilot_output_pwm(function, value.get(function, 0.0), p, n))
+        return out
 
 
 # ------------------------------------------------------------------------------ PX4

@@ -137,6 +137,14 @@ def param_number(value: float, param_type: int) -> float:
     return float(struct.unpack(fmt, struct.pack("<I" if mask is None else fmt.upper(), raw))[0])
 
 
+def param_name(msg) -> str:
+    """A PARAM_VALUE's (or PARAM_REQUEST_READ's) param_id as text, NUL padding removed."""
+    name = msg.param_id
+    if isinstance(name, bytes):
+        name = name.decode("ascii", "replace")
+    return str(name).rstrip("\x00")
+
+
 # ----------------------------------------------------------------------------- the sources
 
 class SourceCache:
@@ -159,10 +167,7 @@ class SourceCache:
             self._param(msg)
 
     def _param(self, msg) -> None:
-        name = msg.param_id
-        if isinstance(name, bytes):
-            name = name.decode("ascii", "replace")
-        name = str(name).rstrip("\x00")
+        name = param_name(msg)
         value = param_number(float(msg.param_value), int(getattr(msg, "param_type", 9)))
         if math.isfinite(value):
             self.params[name] = value
@@ -317,6 +322,25 @@ DERIVATIONS: dict[str, Derivation] = {
     )
 }
 """Every derivation a profile may name."""
+SERVO_SCHEMES: dict[str, ServoScheme] = {
+    "servo_angle": ARDUPILOT_SERVOS, "servo_range": ARDUPILOT_SERVOS,
+    "px4_servo_angle": PX4_MAIN, "px4_servo_range": PX4_MAIN,
+}
+"""The servo derivations and the parameter names each reads."""
+
+
+def output_channel(derive: str, options: tuple[tuple[str, float], ...], cache: SourceCache) -> int | None:
+    """The servo output channel n (1-based) a servo derivation with these options reads, under the
+    parameters in `cache`; None for another derivation or when no channel has the function."""
+    scheme = SERVO_SCHEMES.get(derive)
+    if scheme is None:
+        return None
+    opt = dict(options)
+    if "surface_type" in opt:
+        function = cache.surface_function(int(opt["surface_type"]))
+    else:
+        function = int(opt["function"]) if "function" in opt else None
+    return None if function is None else cache.servo_channel(function, scheme)
 
 
 def derive_value(name: str, msg, t_us: int, cache: SourceCache, options: Options) -> float:

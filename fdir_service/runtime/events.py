@@ -440,3 +440,30 @@ class StreamRateOk(Event):
     @property
     def text(self) -> str:
         return f"{_rows(self.rows)} back at {self.rate_hz:.1f} Hz (wanted {self.wanted_hz:g} Hz)"
+
+
+# ---------------------------------------------------------------------------- parameters
+
+@dataclass(frozen=True)
+class ParametersRequested(Event):
+    """The parameter requests after the autopilot's first HEARTBEAT are settled (`runtime.params`):
+    `confirmed` parameters were answered by the autopilot (PARAM_VALUE, its value in use),
+    `defaulted` ones had no answer and stay at the profile's `[parameters]` value, `unknown` ones
+    had no answer and have no default (a servo channel that may not exist)."""
+
+    confirmed: tuple[str, ...]
+    defaulted: tuple[str, ...]
+    unknown: tuple[str, ...] = ()
+
+    @property
+    def level(self) -> str:  # type: ignore[override]
+        return "warning" if self.defaulted else "info"
+
+    @property
+    def text(self) -> str:
+        parts = [f"parameters confirmed by the autopilot: {', '.join(self.confirmed) or 'none'}"]
+        if self.defaulted:
+            parts.append(f"at the profile's default (no answer): {', '.join(self.defaulted)}")
+        if self.unknown:
+            parts.append(f"no answer, no default: {', '.join(self.unknown)}")
+        return "; ".join(parts)

@@ -51,6 +51,7 @@ from fdir_service.runtime.events import (
     HealthProblem,
     LinkLost,
     LinkRegained,
+    ParametersRequested,
     PipelineClosed,
     Reinitialised,
     Rejected,
@@ -74,9 +75,10 @@ FilterFactory = Callable[..., Filter]
 BEFORE_HEARTBEAT = Rejected("before the autopilot's HEARTBEAT (--autopilot auto)")
 LATENCY_WINDOW = 12_000
 """Step latencies kept (`Pipeline.latencies`, the last 10 min at 20 Hz)."""
-LINK_MESSAGES = frozenset({"HEARTBEAT", "COMMAND_ACK"})
+LINK_MESSAGES = frozenset({"HEARTBEAT", "COMMAND_ACK", "PARAM_VALUE"})
 """Messages of the followed autopilot kept in `Pipeline.link_messages` for the daemon's link layer
-(stream requests: the first HEARTBEAT starts them, COMMAND_ACKs answer them)."""
+(stream and parameter requests: the first HEARTBEAT starts them, COMMAND_ACKs and PARAM_VALUEs
+answer them)."""
 LINK_MESSAGES_KEPT = 64
 
 
@@ -351,6 +353,10 @@ class Pipeline:
         if outcome.message in self.rates.reasons:
             self.rates.reasons[outcome.message] = outcome.outcome
         self._emit(StreamRequested(outcome.message, outcome.interval_us, outcome.outcome), t_ns)
+
+    def parameters_outcome(self, event: ParametersRequested, t_ns: int) -> None:
+        """The daemon's parameter requests are settled: who answered, who stays at the default (logged)."""
+        self._emit(event, t_ns)
 
     def report_never_received(self, t_ns: int) -> list[bytes]:
         """The daemon's check when no frame was ever stepped (so no frame time to measure rates on):

@@ -18,7 +18,8 @@ simulation time. The truth never goes on the wire (--record writes it to an MCAP
 --profile ardupilot sends ArduPlane's stock messages instead (HEARTBEAT autopilot 3, ATTITUDE,
 GLOBAL_POSITION_INT, GPS_RAW_INT, SCALED_PRESSURE, RAW_IMU, VFR_HUD, SERVO_OUTPUT_RAW PWM) and
 answers PARAM_REQUEST_READ / PARAM_REQUEST_LIST for its SERVOn_* parameters: what
-`fdir run --autopilot ardupilot|auto` reads. --profile px4 sends PX4's Onboard-mode messages
+`fdir run --autopilot ardupilot|auto` reads; --param NAME=VALUE changes one of them (its outputs
+follow: e.g. the elevator on another output, reversed). --profile px4 sends PX4's Onboard-mode messages
 (HEARTBEAT autopilot 12, ATTITUDE, LOCAL_POSITION_NED, HIGHRES_IMU, GPS_RAW_INT, VFR_HUD,
 SERVO_OUTPUT_RAW PWM on the MAIN outputs) and answers for its CA_SV_* / PWM_MAIN_* parameters
 (integers bytewise): what `fdir run --autopilot px4|auto` reads.
@@ -40,6 +41,8 @@ examples:
   fdir run --autopilot auto &
   sim-bridge fly real-calm-faultfree --profile ardupilot --duration 30
   sim-bridge fly real-calm-faultfree --profile px4 --duration 30
+  sim-bridge fly real-calm-faultfree --profile ardupilot --param SERVO2_FUNCTION=0 \
+      --param SERVO5_FUNCTION=19 --param SERVO5_REVERSED=1     # elevator on output 5, reversed
 """
 
 
@@ -72,6 +75,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--profile", choices=("native", "ardupilot", "px4"), default="native",
                    help="the message set on the wire: the simulator's own (native, default), "
                         "ArduPlane's stock messages (ardupilot) or PX4's Onboard-mode ones (px4)")
+    p.add_argument("--param", metavar="NAME=VALUE", action="append", default=[],
+                   help="--profile ardupilot: a parameter value other than ArduPlane's default, used for "
+                        "its outputs and its PARAM_VALUE answers (e.g. --param SERVO2_FUNCTION=0 --param "
+                        "SERVO5_FUNCTION=19 --param SERVO5_REVERSED=1: the elevator on output 5, reversed); "
+                        "repeatable")
     p.add_argument("--quiet", action="store_true", help="no summary line")
     p.set_defaults(func=run)
     return p
@@ -133,10 +141,25 @@ class _Receiver:
             self.poll(left)
 
 
+def _params(pairs: list[str]) -> dict[str, float]:
+    """--param NAME=VALUE pairs -> {NAME: VALUE}; ConfigError for a malformed one."""
+    from fdir_service.errors import ConfigError
+
+    out: dict[str, float] = {}
+    for pair in pairs:
+        name, _, value = pair.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"--param: expected NAME=VALUE (a number), got {pair!r}") from None
+    return out
+
+
 def _check_args(args: argparse.Namespace) -> bytes | None:
     """ConfigError for a bad --loss, --speed or --key-file; the signing key (None: unsigned)."""
     from fdir_service.errors import ConfigError
 
+    args.params = _params(args.param)
     if not 0.0 <= args.loss < 1.0:
         raise ConfigError(f"--loss: expected a probability in [0, 1), got {args.loss}")
     if args.speed < 0:
@@ -180,7 +203,8 @@ class _Flight:
         self.ap.reset()
         signing_ts = int((time.time() - 1420070400) * 1e5) if key else 0
         self.link = AutopilotLink(scenario, key=key, signing_timestamp=signing_ts,
-                                  profile=getattr(args, "profile", "native"))
+                                  profile=getattr(args, "profile", "native"),
+                                  params=getattr(args, "params", None))
         self.conn = open_link(args.to, source_system=1, source_component=1)
         self.rx = _Receiver(self.conn, self.link)
         self.truth = _truth_writer(args, scenario)
@@ -287,7 +311,12 @@ def run(args: argparse.Namespace) -> int:
 
     key = _check_args(args)
     scenario = load_scenario(args.scenario)
-    flight = _Flight(args, scenario, key)
+    try:
+        flight = _Flight(args, scenario, key)
+    except ValueError as exc:   # a --param the profile does not have
+        from fdir_service.errors import ConfigError
+
+        raise ConfigError(str(exc)) from None
     duration = scenario.duration_s if args.duration is None else args.duration
     K = int(round(duration / scenario.dt_s))
     flight.handshake()

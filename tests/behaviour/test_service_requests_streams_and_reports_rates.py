@@ -88,9 +88,10 @@ class Rig:
         self.feed([ack_bytes(self.ap, result)])
 
     def requests(self) -> list:
+        """The stream requests written (parameter requests: test_service_asks_for_its_parameters)."""
         msgs = new_mavlink(255, 0).parse_buffer(b"".join(self.written)) or []
         self.written.clear()
-        return msgs
+        return [m for m in msgs if m.get_type() != "PARAM_REQUEST_READ"]
 
     def statustexts(self) -> list[str]:
         """The STATUSTEXTs sent (on frames and by the link), chunks joined."""

@@ -4,7 +4,7 @@ monitor, in a fault-free real-sky world: the service picks the autopilot's profi
 HEARTBEAT, the frames carry every row (u, w derived from GLOBAL_POSITION_INT / LOCAL_POSITION_NED
 + ATTITUDE, the elevator from SERVO_OUTPUT_RAW PWM), the inputs are the autopilot's commands to
 PWM resolution (elevator sign included), and nothing is declared. The simulated ArduPlane answers
-PARAM_REQUEST_LIST / READ with its SERVOn_* defaults, the simulated PX4 with px4.toml's
+PARAM_REQUEST_LIST / READ with its SERVOn_* defaults (all 16 outputs), the simulated PX4 with px4.toml's
 [parameters], integers bytewise."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from fdir_service.autopilot_profile import select_autopilot
-from fdir_service.mavlink import dialect
+from fdir_service.mavlink import dialect, new_mavlink
 from fdir_service.pipeline import Pipeline
 from fdir_service.recording.logtools import McapLog
 from fdir_service.replay import raw_input
@@ -53,16 +53,33 @@ def flight(request, tmp_path_factory):
     return profile, f.gs, log, truth, f.service_err + f.sim_err
 
 
-def frames_of(log: Path) -> tuple[list[str], list, Pipeline]:
-    """The recorded input bytes through `--autopilot auto`'s pipeline with a recording fake filter:
-    (row names, [(t, y, mask, u)] per frame, pipeline)."""
+def _without(data: bytes, drop: tuple[str, ...]) -> bytes:
+    """The MAVLink packets in `data` but those of the message types `drop`."""
+    if not drop:
+        return data
+    msgs = new_mavlink(255, 0).parse_buffer(data) or []
+    return b"".join(bytes(m.get_msgbuf()) for m in msgs if m.get_type() not in drop)
+
+
+def frames_of(log: Path, drop: tuple[str, ...] = ()) -> tuple[list[str], list, Pipeline]:
+    """The recorded input bytes (without the message types `drop`) through `--autopilot auto`'s
+    pipeline with a recording fake filter: (row names, [(t, y, mask, u)] per frame, pipeline)."""
     config = select_autopilot(load_service_config(estimator="aerosonde-robust"), "auto")
     filters: list = []
     p = Pipeline(config, observers=[], filter_factory=fake_factory(filters))
     for t_ns, data in raw_input(McapLog(log)):
-        p.feed(data, t_ns)
+        p.feed(_without(data, drop), t_ns)
     p.close()
     return p.assembler.names, [c for f in filters for c in f.calls], p
+
+
+def command_errors(calls: list, truth: Path, t_from: float = 1.0) -> np.ndarray:
+    """(frames, 2) |input - the autopilot's command| [delta_e rad, delta_t] of the frames `calls`
+    from t_from (s) on, against the simulator's truth recording (the command of the frame before)."""
+    cmd = {round(r["t"], 3): (r["delta_e"], r["delta_t"]) for _, r in McapLog(truth).iter_json("/sim/truth")}
+    err = [np.subtract(u, cmd[round(t - 0.05, 3)]) for t, _, _, u in calls
+           if t >= t_from and round(t - 0.05, 3) in cmd]
+    return np.abs(np.array(err))
 
 
 def test_the_service_selects_the_profile_and_every_row_is_there(flight):
@@ -88,11 +105,9 @@ def test_inputs_are_the_commands_to_pwm_resolution(flight):
     profile, _, log, truth, _ = flight
     _, elevator_us, throttle_us = PROFILES[profile]
     _, calls, _ = frames_of(log)
-    cmd = {round(r["t"], 3): (r["delta_e"], r["delta_t"]) for _, r in McapLog(truth).iter_json("/sim/truth")}
-    err = [np.subtract(u, cmd[round(t - 0.05, 3)]) for t, _, _, u in calls
-           if t >= 1.0 and round(t - 0.05, 3) in cmd]
+    err = command_errors(calls, truth)
     assert len(err) > 400
-    err = np.abs(np.array(err)).max(axis=0)
+    err = err.max(axis=0)
     assert err[0] <= 0.5 * math.radians(25.0) / elevator_us + 1e-6, err   # half a microsecond of PWM
     assert err[1] <= 0.5 / throttle_us + 1e-6, err
 
@@ -122,12 +137,13 @@ def _read(name: str = "", index: int = -1, system: int = 1):
 
 
 def test_the_simulated_arduplane_answers_parameter_requests():
-    ask = _asker("ardupilot", 12)
+    ask = _asker("ardupilot", 80)                  # SERVO1..16_FUNCTION, then MIN / TRIM / MAX / REVERSED
     every = ask(dialect.MAVLink_param_request_list_message(1, 1))
-    assert every["SERVO2_FUNCTION"] == 19 and every["SERVO3_FUNCTION"] == 70 and len(every) == 12
+    assert every["SERVO2_FUNCTION"] == 19 and every["SERVO3_FUNCTION"] == 70 and len(every) == 80
+    assert every["SERVO5_FUNCTION"] == 0 and every["SERVO16_MAX"] == 1900
     assert all(r.param_value == every[r.param_id] for r in ask.raw)       # integers cast to float
     assert ask(_read("SERVO2_TRIM")) == {"SERVO2_TRIM": 1500}
-    assert ask(_read(index=6)) == {"SERVO2_MAX": 1900}
+    assert ask(_read(index=22)) == {"SERVO2_MAX": 1900}
     assert ask(_read("NO_SUCH")) == {}
     assert ask(_read("SERVO2_TRIM", system=7)) == {}
 
