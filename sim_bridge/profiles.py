@@ -8,15 +8,9 @@ pressure) and the autopilot's command into MAVLink message objects; `AutopilotLi
   (`fdir run --autopilot none`): ODOMETRY body velocities, SCALED_IMU, ACTUATOR_OUTPUT_STATUS, ...
 - `ardupilot`: ArduPlane's stock set, read by config/autopilots/ardupilot.toml (`fdir run
   --autopilot ardupilot|auto`): HEARTBEAT autopilot 3, ATTITUDE, GLOBAL_POSITION_INT (NED cm/s),
-<<<<<<< HEAD
   GPS_RAW_INT (UNIX-epoch GPS time), SYSTEM_TIME (1 Hz, SRn_EXTRA3), SCALED_PRESSURE, RAW_IMU (mG),
-  VFR_HUD (no timestamp), SERVO_OUTPUT_RAW (PWM through ArduPlane's default SERVOn_* parameters),
-  PARAM_VALUE answers.
-=======
-  GPS_RAW_INT (UNIX-epoch GPS time), SCALED_PRESSURE, RAW_IMU (mG), VFR_HUD (no timestamp),
-  SERVO_OUTPUT_RAW (PWM through its SERVOn_* parameters: ArduPlane's defaults, or `--param`
-  overrides), PARAM_VALUE answers (only when asked, as a stock ArduPlane).
->>>>>>> p16-params
+  VFR_HUD (no timestamp), SERVO_OUTPUT_RAW (PWM through its SERVOn_* parameters: ArduPlane's
+  defaults, or `--param` overrides), PARAM_VALUE answers (only when asked, as a stock ArduPlane).
 - `px4`: PX4's Onboard-mode set (MAV_n_MODE = 2), read by config/autopilots/px4.toml (`fdir run
   --autopilot px4|auto`): HEARTBEAT autopilot 12, ATTITUDE, LOCAL_POSITION_NED (NED m/s),
   HIGHRES_IMU (m/s^2, hPa), GPS_RAW_INT (fix time since boot), VFR_HUD, SERVO_OUTPUT_RAW port 0
