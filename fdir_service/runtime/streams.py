@@ -29,6 +29,9 @@ from fdir_service.service_config import ServiceConfig, StreamConfig
 DEFAULT_RATES_HZ = {"GPS_RAW_INT": 5.0}
 """Wanted rates (Hz) of messages whose sensor is slower than the frame rate (a GNSS fix: 5 Hz);
 any other message is wanted at the frame rate."""
+CLOCK_MESSAGE, CLOCK_RATE_HZ = "SYSTEM_TIME", 1.0
+"""Wanted when a row is stamped "epoch": SYSTEM_TIME maps UNIX-epoch stamps onto the boot clock
+(`runtime.clock.EpochClock`); once a second follows the clocks' drift."""
 NOT_STREAMED = frozenset({"PARAM_VALUE"})
 """Messages a mapping reads that are not periodic streams (never requested, never rate-checked)."""
 ARDUPILOT_STREAM_GROUPS = {
@@ -42,6 +45,7 @@ ARDUPILOT_STREAM_GROUPS = {
     "LOCAL_POSITION_NED": dialect.MAV_DATA_STREAM_POSITION,
     "ATTITUDE": dialect.MAV_DATA_STREAM_EXTRA1,
     "VFR_HUD": dialect.MAV_DATA_STREAM_EXTRA2,
+    "SYSTEM_TIME": dialect.MAV_DATA_STREAM_EXTRA3,
 }
 """ArduPilot's REQUEST_DATA_STREAM group (its SRn_ parameter) of each message (GCS_Common.cpp)."""
 RESULT_WORDS = {
@@ -59,14 +63,18 @@ PENDING = "request pending"
 
 def wanted_rates(config: ServiceConfig) -> dict[str, float]:
     """Message name -> wanted rate (Hz) for every periodic message the mapping reads: the highest
-    `rate_hz` of its rows, else DEFAULT_RATES_HZ, else the frame rate."""
+    `rate_hz` of its rows, else DEFAULT_RATES_HZ, else the frame rate; and SYSTEM_TIME at 1 Hz when
+    a row is stamped "epoch"."""
     wanted: dict[str, float] = {}
-    for fm in config.measurements + config.inputs:
+    rows = config.measurements + config.inputs
+    for fm in rows:
         for message in (fm.message, *fm.sources[1:]):
             if message in NOT_STREAMED:
                 continue
             rate = fm.rate_hz if message == fm.message and fm.rate_hz > 0 else 0.0
             wanted[message] = max(wanted.get(message, 0.0), rate)
+    if any(fm.stamp == "epoch" for fm in rows):
+        wanted[CLOCK_MESSAGE] = CLOCK_RATE_HZ
     return {m: r or DEFAULT_RATES_HZ.get(m, config.frame_rate_hz) for m, r in wanted.items()}
 
 
