@@ -56,9 +56,13 @@ class AdaptiveTransition:
 
     def __init__(self, sigma: np.ndarray, window: int = 3, n_alpha: int = 50,
                  roc: Callable | None = None, pi01: np.ndarray | float = 0.01,
-                 pi10: np.ndarray | float = 0.01, proposal: bool = False) -> None:
+                 pi10: np.ndarray | float = 0.01, proposal: bool = False,
+                 noisy: np.ndarray | None = None) -> None:
         self.sigma = np.asarray(sigma, dtype=float).copy()
         nf = self.sigma.size
+        self.noisy = np.zeros(nf, bool) if noisy is None else np.asarray(noisy, bool).copy()
+        """(nf,) noisy-sensor faults: their test is the variance test, H0 N(0, s^2) against
+        H1 N(0, (k s)^2) with k = 1 + the window's k - 1 (docs/faults.md), not a mean shift."""
         self.window = int(window)
         self.n_alpha = int(n_alpha)
         self._roc = roc
@@ -112,12 +116,8 @@ class AdaptiveTransition:
         self._mu10[:, slot] = mu10
         self._mu11[:, slot] = mu11
         self._count = min(self._count + 1, self.window)
-        k = self._count
         for j in range(self.sigma.size):
-            s = self._s[j, :k]
-            zero = self._zero[:k]
-            pfa = float(self._roc(zero, s, self._mu10[j, :k], s, self.n_alpha)[0])
-            pmd = float(self._roc(zero, s, self._mu11[j, :k], s, self.n_alpha)[1])
+            pfa, pmd = self._test(j, self._count)
             self.pfa[j] = min(max(pfa, 0.0), 1.0) if pfa == pfa else 0.5   # NaN -> no evidence
             self.pmd[j] = min(max(pmd, 0.0), 1.0) if pmd == pmd else 0.5
         self.pi01 = 1.0 - phi_fa(self.pfa)
@@ -125,6 +125,19 @@ class AdaptiveTransition:
         # ~2e-4: a rare sentinel then carries up to ~60x the weight; a floor at the model's pi01
         # measured worse, docs/estimation.md "ch6"); pi10 the model's
         self.pi10 = self.model_pi10.copy() if self.proposal else 1.0 - phi_md(self.pmd)
+
+    def _test(self, j: int, k: int) -> tuple[float, float]:
+        """(Pfa, Pmd) of fault j over the last k samples: the mean-shift test of H1 means mu1|0
+        (Pfa) and mu1|1 (Pmd), or for a noisy sensor the variance test of H1 standard deviations
+        k s with k - 1 = mu1|0 (Pfa) and mu1|1 (Pmd) (saddlepoint.pfa_pmd takes unequal variances)."""
+        s, zero = self._s[j, :k], self._zero[:k]
+        if self.noisy[j]:
+            s10 = s * (1.0 + np.maximum(self._mu10[j, :k], 0.0))
+            s11 = s * (1.0 + np.maximum(self._mu11[j, :k], 0.0))
+            return (float(self._roc(zero, s, zero, s10, self.n_alpha)[0]),
+                    float(self._roc(zero, s, zero, s11, self.n_alpha)[1]))
+        return (float(self._roc(zero, s, self._mu10[j, :k], s, self.n_alpha)[0]),
+                float(self._roc(zero, s, self._mu11[j, :k], s, self.n_alpha)[1]))
 
     def log_weight_correction(self, before: np.ndarray, after: np.ndarray,
                               available: np.ndarray) -> np.ndarray | None:

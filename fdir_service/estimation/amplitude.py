@@ -65,7 +65,7 @@ class AmplitudePredictor:
                 G[j, np.searchsorted(rows, r)] = 1.0
                 avail[j] = True
                 sigma[j] = self.meas.sigma[r]
-        for j, r in enumerate(lay.noisy_row):          # k - 1 keeps f: `fault_types.NoisySentinels` draws it
+        for j, r in enumerate(lay.noisy_row):          # |e| sqrt(pi / 2) / sigma_r - 1 (`predict`)
             if r >= 0 and mask[r]:
                 avail[j] = True
                 sigma[j] = NOISY_SIGMA
@@ -111,4 +111,17 @@ class AmplitudePredictor:
         G, avail, _ = self.gain(mask)
         A = G @ innovation
         A += X[N_AIRFRAME:]
+        self._noisy_amplitude(A, innovation, mask)
         return A, avail
+
+    def _noisy_amplitude(self, A: np.ndarray, innovation: np.ndarray, mask: np.ndarray) -> None:
+        """A noisy fault's amplitude (in place): k - 1 from one innovation, |e| sqrt(pi / 2) / sigma_r
+        - 1 (unbiased for Gaussian noise of k sigma_r); what the adaptive transition's variance test
+        takes as its H1 (a new noisy fault's entry is drawn from its prior, `NoisySentinels`)."""
+        rows = self.layout.noisy_row
+        if not (rows >= 0).any():
+            return
+        reduced = np.cumsum(mask) - 1
+        for j, r in enumerate(rows.tolist()):
+            if r >= 0 and mask[r]:
+                A[j] = np.abs(innovation[reduced[r]]) * (np.sqrt(np.pi / 2.0) / self.meas.sigma[r]) - 1.0

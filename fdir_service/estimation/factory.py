@@ -167,7 +167,7 @@ def _transition(rec: Recipe, estimator: EstimatorConfig, amp: AmplitudePredictor
     mode = rec.adaptive_transition if rec.adaptive_transition != "parts" \
         else estimator.settings.adaptive_transition
     return AdaptiveTransition(amp.sigma, estimator.settings.saddlepoint_window, roc=roc, pi01=pi01,
-                              pi10=pi10, proposal=mode == "proposal")
+                              pi10=pi10, proposal=mode == "proposal", noisy=amp.layout.noisy_row >= 0)
 
 
 def _gyro_fault(estimator: EstimatorConfig, layout: FaultLayout) -> int | None:

@@ -396,8 +396,9 @@ def roc_optimal(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The thesis's threshold search (Alg. 6.4-6.5): best (Pfa, Pmd, alpha) on a threshold grid.
 
-    n_alpha thresholds evenly spaced (endpoints included) from Xbar evaluated at the H0 means to
-    Xbar at the H1 means (eq. 6.63-6.66); returns the one minimising sqrt(Pfa^2 + Pmd^2) (eq. 2.15).
+    n_alpha thresholds evenly spaced (endpoints included) from E[Xbar | H0] to E[Xbar | H1] (with
+    equal variances: Xbar at the H0 and H1 means, eq. 6.63-6.66); returns the one minimising
+    sqrt(Pfa^2 + Pmd^2) (eq. 2.15).
     mu0, s0, mu1, s1: (n,) or batched (..., n) (e.g. one row per fault); returns float64 scalars
     (0-d arrays) or arrays of shape (...).
     """
@@ -419,8 +420,10 @@ def roc_optimal(
         pmd = ndtr((alphas - m) / sd)
     else:
         hyp = hypotheses(mu0[..., None, :], s0[..., None, :], mu1[..., None, :], s1[..., None, :])
-        # X_k evaluated at y = mu0_k is g0_k and at y = mu1_k is g1_k (see hypotheses).
-        a_min, a_max = _avg(hyp[0])  # (..., 1) each
+        # The grid runs from E[Xbar | H0] to E[Xbar | H1], E[X_k] = g + q (see hypotheses): with
+        # equal variances (q = 0) Xbar at the hypothesis means, as eq. 6.63-6.66; a pure variance
+        # test (mu1 = mu0, a noisy sensor) would otherwise have one threshold, the support's end.
+        a_min, a_max = _avg(hyp[0] + hyp[2])  # (..., 1) each
         alphas = a_min + (a_max - a_min) * frac  # (..., n_alpha)
         pfa, pmd = pfa_pmd_core(alphas, hyp, n, order)
     best = np.argmin(np.hypot(pfa, pmd), axis=-1)[..., None]  # hypot: no underflow of tiny tails

@@ -194,3 +194,29 @@ def test_a_stuck_sensor_that_leaves_mode_1_re_anchors_half_its_particles_on_the_
     np.testing.assert_allclose(X[3], [0.05 + 0.1, 0.05, 0.05])       # only the first moved, onto it
     assert part.anchor(X[N_AIRFRAME:], modes, v, np.full((LAYOUT.nf, 1), 0.01), innov,
                        np.array([True, False, True])) is None         # its row did not arrive
+
+
+def test_a_noisy_faults_pfa_and_pmd_come_from_the_variance_test():
+    from fdir_service.estimation.adaptive import AdaptiveTransition
+
+    tr = AdaptiveTransition(np.array([1.0, 1.0]), window=3, noisy=np.array([False, True]))
+    for _ in range(3):
+        tr.update(np.array([3.0, 3.0]), np.array([3.0, 3.0]))      # a 3-sigma shift; k - 1 = 3
+    shift, variance = tr.pfa.copy(), tr.pfa[1]
+    assert 0.0 < variance < 0.2 and 0.0 < tr.pmd[1] < 0.2           # k = 4 over 3 samples: separable
+    assert abs(variance - shift[0]) > 0.01                          # not the mean-shift test's figure
+    weak = AdaptiveTransition(np.array([1.0]), window=3, noisy=np.array([True]))
+    for _ in range(3):
+        weak.update(np.array([0.2]), np.array([0.2]))               # k = 1.2: hardly told apart
+    assert weak.pfa[0] > tr.pfa[1] and weak.pmd[0] > tr.pmd[1]
+
+
+def test_the_adaptive_filters_publish_pfa_and_pmd_for_noisy_faults():
+    est = load_estimator("aerosonde-catalogue")
+    filt = build_filter("ARJMRPF", est, np.random.default_rng(0), particles=200)
+    m = len(est.measurements)
+    y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0])[:m]
+    for k in range(4):
+        out = filt.step(0.05 * (k + 1), y, np.ones(m, dtype=bool), np.array([-0.08, 0.5]))
+    nz = [f.id for f in est.faults].index("baro_nz")
+    assert np.isfinite(out.pfa[nz]) and np.isfinite(out.pmd[nz]) and 0.0 <= out.pfa[nz] <= 1.0

@@ -253,14 +253,28 @@ def test_identical_hypotheses_give_one_half():
 
 def test_variance_only_change_is_answered_exactly_at_the_support_edge():
     """Equal means, s1 > s0: X_k = a y^2 + c with a > 0 is bounded below by its value at the
-    mean; the whole threshold grid sits on that edge, where P(Xbar > edge) = 1 exactly."""
+    mean, where P(Xbar > edge) = 1 exactly."""
     mu = np.zeros(3)
     s0 = np.ones(3)
-    pf, pm, alpha = roc_optimal(mu, s0, mu, 2.0 * s0)
-    assert (pf, pm) == (1.0, 0.0)
-    assert alpha == pytest.approx(-np.log(2.0))
     pf, pm = pfa_pmd(-np.log(2.0) - 1e-3, mu, s0, mu, 2.0 * s0)
     assert (pf, pm) == (1.0, 0.0)
+
+
+def test_a_variance_test_gets_its_threshold_between_the_hypotheses_expectations():
+    """A noisy sensor's test (equal means, s1 = 2 s0, n = 3): the grid spans E[Xbar | H0] to
+    E[Xbar | H1], not the support's edge alone, and the best threshold's Pfa, Pmd match a Monte
+    Carlo of the statistic."""
+    mu, s0, r = np.zeros(3), np.ones(3), 2.0
+    pf, pm, alpha = roc_optimal(mu, s0, mu, r * s0)
+    e0 = -np.log(r) + (r * r - 1) / (2 * r * r)          # E[X_k | H0] = g + q (hypotheses)
+    e1 = -np.log(r) + (r * r - 1) / 2
+    assert e0 < alpha < e1 and 0.0 < pf < 0.5 and 0.0 < pm < 0.5
+    rng = np.random.default_rng(0)
+    a = 0.5 * (1.0 - 1.0 / (r * r))
+    x0 = (a * rng.standard_normal((200_000, 3)) ** 2 - np.log(r)).mean(axis=1)
+    x1 = (a * (r * rng.standard_normal((200_000, 3))) ** 2 - np.log(r)).mean(axis=1)
+    assert pf == pytest.approx((x0 > alpha).mean(), abs=0.01)
+    assert pm == pytest.approx((x1 < alpha).mean(), abs=0.01)
 
 
 def test_newton_stays_in_the_domain_where_plain_newton_jumps_out():
