@@ -148,6 +148,7 @@ class FilterSettings:
     rate_sentinel: str = "row"           # gyro fault amplitude: "row" (eq. 4.16) | "window" (theta slope)
     rate_window_s: float = 1.0           # the window of rate_sentinel = "window" (s)
     thrust_sigma: float = 0.01           # noise of the derived throttle row (0..1 throttle scale)
+    q_tail: tuple[float, ...] = (0.0, 1.0)  # (share, scale): heavy-tailed pitch-rate process noise
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -367,6 +368,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
                                   check=POSITIVE),
         rate_window_s=f.take("rate_window_s", "number", d.rate_window_s, check=POSITIVE),
         thrust_sigma=f.take("thrust_sigma", "number", d.thrust_sigma, check=POSITIVE),
+        q_tail=tuple(f.take("q_tail", "numbers", d.q_tail, check=ALL_NON_NEGATIVE)),
         imm=_imm(f, faults), gating=_gating(f), **words)
     f.finish()
     return s

@@ -54,10 +54,14 @@ class DriftPredict(GaussianPredict):
     (the amplitude prior's support, faults.amplitude_max; inf: unbounded), so an unobservable fault
     cannot wander off and drag the airframe state with it."""
 
-    def __init__(self, process, q_std: np.ndarray, drift_std: np.ndarray, bound: np.ndarray) -> None:
+    def __init__(self, process, q_std: np.ndarray, drift_std: np.ndarray, bound: np.ndarray,
+                 q_tail: tuple[float, float] = (0.0, 1.0)) -> None:
         super().__init__(process, q_std)
         self.drift_std = np.asarray(drift_std, dtype=float).reshape(-1, 1)
         self.bound = np.asarray(bound, dtype=float).reshape(-1, 1)
+        self.q_tail = (float(q_tail[0]), float(q_tail[1]))
+        """(probability, scale): that share of the particles gets scale x the pitch-rate noise each
+        step (parts.q_tail): a heavy tail for the pitch accelerations no moment model foresees."""
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:
@@ -65,6 +69,8 @@ class DriftPredict(GaussianPredict):
         noise = rng.standard_normal(X.shape)
         noise[:N_AIRFRAME] *= self.q_std[:N_AIRFRAME]
         noise[N_AIRFRAME:] *= np.where(modes, self.q_std[N_AIRFRAME:], self.drift_std)
+        if self.q_tail[0] > 0.0:
+            noise[4] *= np.where(rng.random(X.shape[1]) < self.q_tail[0], self.q_tail[1], 1.0)
         X += noise
         F = X[N_AIRFRAME:]
         np.minimum(F, self.bound, out=F)

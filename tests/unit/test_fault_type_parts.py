@@ -220,3 +220,22 @@ def test_the_adaptive_filters_publish_pfa_and_pmd_for_noisy_faults():
         out = filt.step(0.05 * (k + 1), y, np.ones(m, dtype=bool), np.array([-0.08, 0.5]))
     nz = [f.id for f in est.faults].index("baro_nz")
     assert np.isfinite(out.pfa[nz]) and np.isfinite(out.pmd[nz]) and 0.0 <= out.pfa[nz] <= 1.0
+
+
+def test_a_heavy_pitch_rate_tail_gives_a_share_of_the_particles_wider_pitch_rate_noise():
+    from fdir_service.estimation.predict import DriftPredict
+
+    class Still:
+        def propagate(self, X, u):
+            return X.copy()
+
+    q_std = np.r_[np.zeros(4), 0.01, np.zeros(LAYOUT.nf)]
+    zeros = np.zeros(LAYOUT.nf)
+    plain = DriftPredict(Still(), q_std, zeros, np.full(LAYOUT.nf, np.inf))
+    tail = DriftPredict(Still(), q_std, zeros, np.full(LAYOUT.nf, np.inf), (0.05, 15.0))
+    X, modes = cloud(20000), np.zeros((LAYOUT.nf, 20000), bool)
+    dq = tail.predict(X, modes, np.zeros(2), np.random.default_rng(0))[4]
+    dq0 = plain.predict(X, modes, np.zeros(2), np.random.default_rng(0))[4]
+    assert abs(np.std(dq0) - 0.01) < 0.0005
+    assert abs(np.std(dq) - 0.01 * np.sqrt(0.95 + 0.05 * 225)) < 0.003     # the mixture's spread
+    assert (np.abs(dq) > 0.05).mean() > 0.03 > (np.abs(dq0) > 0.05).mean()
