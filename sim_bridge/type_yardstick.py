@@ -169,13 +169,12 @@ class ItemView(NamedTuple):
 def item_view(prob: np.ndarray, entries: Sequence[Kind], names: list[str]) -> ItemView:
     """The items of entries (nf,) and their P (`items.item_probability`) from the entries' P
     prob (..., K, nf); best: the most probable entry of each item per frame."""
-    from fdir_service.runtime.items import ItemLayout, item_probability
+    from types import SimpleNamespace
 
-    groups: dict[str, list[int]] = {}
-    for j, en in enumerate(entries):
-        groups.setdefault(en.target, []).append(j)
-    layout = ItemLayout(tuple(names[g[0]] for g in groups.values()), tuple(groups),
-                        tuple(tuple(g) for g in groups.values()))
+    from fdir_service.runtime.items import item_layout, item_probability
+
+    layout = item_layout([SimpleNamespace(id=n, target=en.target)
+                          for n, en in zip(names, entries, strict=True)])
     p_item = item_probability(prob, layout, [en.type for en in entries])
     filled = np.where(np.isnan(prob), -np.inf, prob)
     best = np.stack([np.asarray(g)[np.argmax(filled[..., g], axis=-1)] for g in layout.entries], axis=-1)

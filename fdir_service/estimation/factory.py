@@ -236,12 +236,8 @@ def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, me
         if folding.any() else NoFold()
     faint = estimator.settings.pi10_faint
     exit_ = FaintExit(amp.sigma, faint) if faint > 0 else None
-    pairs = sibling_pairs(layout)
-    typed = TypedEvolution(layout, meas.H)
-    switch = TypeSwitch(pairs, estimator.settings.pi_switch, typed, layout.sensor_row) \
-        if pairs.size or typed.stuck.size else None
     jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry, fold, exit_,
-                      exit_to_drift=estimator.settings.mode0 == "drift", switch=switch)
+                      exit_to_drift=estimator.settings.mode0 == "drift")
     return jump, _sentinel_weighting(estimator, layout, meas, amp, carry)
 
 
@@ -268,12 +264,16 @@ def _predictor(rec: Recipe, estimator: EstimatorConfig, process, q_std: np.ndarr
 
 def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel) -> Parts:
     """The parts with the typed faults' wrappers (`fault_types`): the evolution after the predict,
-    the noisy rows' likelihood around the correction and their prior draw after the sentinels."""
+    the noisy rows' likelihood around the correction, their prior draw after the sentinels, and
+    the jump's hand-overs between an item's types (one `TypedEvolution` shared by all)."""
     if not layout.typed:
         return parts
-    parts.jump.given_fault = True
     evolution = TypedEvolution(layout, meas.H)
-    parts.predict = TypedPredict(parts.predict, evolution, layout, meas.H)
+    pairs = sibling_pairs(layout)
+    switch = TypeSwitch(pairs, estimator.settings.pi_switch, evolution, layout.sensor_row) \
+        if pairs.size or evolution.stuck.size else None
+    parts.jump.use_types(switch)
+    parts.predict = TypedPredict(parts.predict, evolution, layout)
     noisy = evolution.noisy
     rows = np.maximum(layout.sensor_row, layout.noisy_row)
     parts.correction = TypedCorrection(parts.correction, evolution, rows, meas.sigma)

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+from fdir_service.estimation.measurement import state_gain
 
 if TYPE_CHECKING:
     from fdir_service.estimation.base import StepOutput
@@ -46,6 +47,7 @@ class TypedEvolution:
     """
 
     def __init__(self, layout: FaultLayout, H: np.ndarray) -> None:
+        self.H = np.asarray(H, dtype=float)
         self.stuck = _indices(layout, "stuck")
         self.stuck_h = np.asarray(H, dtype=float)[layout.sensor_row[self.stuck], :N_AIRFRAME] \
             if self.stuck.size else np.zeros((0, N_AIRFRAME))
@@ -95,12 +97,11 @@ class TypedPredict:
     """A predict part followed by the typed entries' evolution (`TypedEvolution`); keeps the last
     command, and reports each fault's user-facing value (`annotate`)."""
 
-    def __init__(self, inner, evolution: TypedEvolution, layout: FaultLayout, H: np.ndarray) -> None:
+    def __init__(self, inner, evolution: TypedEvolution, layout: FaultLayout) -> None:
         self.inner = inner
         self.process = inner.process
         self.evolution = evolution
         self.layout = layout
-        self.H = np.asarray(H, dtype=float)
         self.u_prev: np.ndarray | None = None
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
@@ -169,8 +170,7 @@ class TypedCorrection:
         present = frame.mask[self.rows]
         if not present.any():
             return None
-        reduced = np.cumsum(frame.mask) - 1                     # full row -> row of the frame
-        ri = reduced[self.rows[present]]
+        ri = frame.row_of[self.rows[present]]
         js = self.faults[present]
         pred = frame.mm.H[ri] @ X                               # (k, N)
         e = frame.yv[ri, None] - pred
@@ -220,23 +220,23 @@ class TypeSwitch:
         self.rate = float(rate)
         self.stuck = evolution.stuck if evolution is not None else np.zeros(0, int)
         self.stuck_rows = np.asarray(rows, dtype=int)[self.stuck] if self.stuck.size else self.stuck
-        h = evolution.stuck_h if evolution is not None else np.zeros((0, N_AIRFRAME))
-        self.stuck_g = (h / np.maximum((h * h).sum(axis=1, keepdims=True), 1e-300)).T    # (5, k)
+        self.stuck_g = state_gain(evolution.H, self.stuck_rows) if self.stuck.size \
+            else np.zeros((N_AIRFRAME, 0))                                                  # (5, k)
 
     def anchor(self, F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
-               innov: np.ndarray, mask: np.ndarray) -> np.ndarray | None:
+               innov: np.ndarray, frame: Frame) -> np.ndarray | None:
         """Before the jump: (k, N) the reading's distance y_r - h_r z of the stuck particles that
         will leave and re-anchor (0 elsewhere), or None. innov (m_rows, N): y - H x of the frame's
-        rows (mask (m,)); pi10 (nf, 1) or (nf, N) this step's exit probabilities."""
+        rows; pi10 (nf, 1) or (nf, N) this step's exit probabilities."""
         if not self.stuck.size:
             return None
-        present = mask[self.stuck_rows]
+        present = frame.mask[self.stuck_rows]
         if not present.any():
             return None
         go = modes[self.stuck] & (v[self.stuck] < 0.5 * pi10[self.stuck]) & present[:, None]
         if not go.any():
             return None
-        ri = (np.cumsum(mask) - 1)[self.stuck_rows]
+        ri = frame.row_of[self.stuck_rows]
         dist = innov[np.where(present, ri, 0)] + F[self.stuck]       # y_r - h_r z (the held f out)
         return np.where(go, dist, 0.0)
 

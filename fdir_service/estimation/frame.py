@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -24,3 +25,8 @@ class Frame:
     def of(cls, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray, meas: MeasurementModel) -> Frame:
         mask = np.asarray(mask, dtype=bool)
         return cls(t, mask, np.asarray(u, dtype=float), meas.reduced(mask), np.asarray(y, dtype=float)[mask])
+
+    @cached_property
+    def row_of(self) -> np.ndarray:
+        """(m,) each full row's index among the rows that arrived (meaningful where mask is True)."""
+        return np.cumsum(self.mask) - 1

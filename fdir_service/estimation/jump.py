@@ -21,6 +21,7 @@ import numpy as np
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.layout import N_AIRFRAME
+from fdir_service.estimation.measurement import state_gain
 
 if TYPE_CHECKING:
     from fdir_service.estimation.frame import Frame
@@ -176,12 +177,7 @@ class ExitFold:
     @classmethod
     def for_sensors(cls, H: np.ndarray, sensor_row: np.ndarray) -> ExitFold:
         """From the measurement matrix H (m, n) and each fault's row (nf,), -1 for actuators."""
-        G = np.zeros((N_AIRFRAME, sensor_row.size))
-        for j, r in enumerate(sensor_row.tolist()):
-            h = H[r, :N_AIRFRAME] if r >= 0 else np.zeros(N_AIRFRAME)
-            if h @ h > 0:
-                G[:, j] = h / (h @ h)
-        return cls(G)
+        return cls(state_gain(H, sensor_row))
 
     def capture(self, F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
                 reset_to: np.ndarray | None = None) -> np.ndarray | None:
@@ -275,20 +271,20 @@ class MarkovJump:
     transition: `FixedTransition` | `adaptive.AdaptiveTransition`; amplitude: the A_f predictor;
     forced_zero: mode-0 fault entries pinned at 0 (parts.mode0); carry: `NoCarry` | `ActuatorCarry`;
     fold: what an exit does with a sensor fault, `NoFold` | `ExitFold` (faults.on_exit); exit:
-    `ModelExit` | `FaintExit`; switch: None | `fault_types.TypeSwitch` (parts.pi_switch).
+    `ModelExit` | `FaintExit`; a typed estimator adds its `fault_types.TypeSwitch` (`use_types`).
     After `jump`, `sentinels` (nf, N) are the particles that jumped 0 -> 1 and `last_amplitude`
     (nf, N) their predicted amplitudes (indices before this step's resampling).
     """
 
     def __init__(self, transition, amplitude: AmplitudePredictor, forced_zero: bool, carry,
-                 fold=None, exit=None, exit_to_drift: bool = False, switch=None) -> None:
+                 fold=None, exit=None, exit_to_drift: bool = False) -> None:
         self.transition = transition
         self.amplitude = amplitude
         self.forced_zero = bool(forced_zero)
         self.carry = carry
         self.fold = fold or NoFold()
         self.exit = exit or ModelExit()
-        self.switch = switch
+        self.switch = None
         """None, or a `fault_types.TypeSwitch`: a fault handed to another type of its item."""
         self.given_fault = False
         """True (typed estimators): `annotate` sets out.fault_value to each entry's mean over its
@@ -316,7 +312,7 @@ class MarkovJump:
         reset_to = self.drift.update(F, modes, w) if self.drift is not None else None
         pi10 = self.exit.pi10(F, self.transition.pi10, reset_to)
         folded = self.fold.capture(F, modes, v, pi10, reset_to)
-        anchored = None if self.switch is None else self.switch.anchor(F, modes, v, pi10, innov, frame.mask)
+        anchored = None if self.switch is None else self.switch.anchor(F, modes, v, pi10, innov, frame)
         may = avail if self.switch is None else self.switch.open(avail, modes)
         self.sentinels = jump(F, modes, A, may, self.transition.pi01, pi10, v, self.forced_zero,
                               reset_to)
@@ -326,6 +322,12 @@ class MarkovJump:
             self.switch.apply_anchor(X, anchored)
             self.switch.apply(F, modes, reset_to, rng)
         return self.transition.log_weight_correction(before, modes, avail)
+
+    def use_types(self, switch) -> None:
+        """For an estimator with typed faults (`factory._typed`): the `fault_types.TypeSwitch` (or
+        None) and `given_fault` on."""
+        self.switch = switch
+        self.given_fault = True
 
     def pin(self, X: np.ndarray, modes: np.ndarray) -> None:
         """Mode-0 fault entries back to 0 (forced_zero), in place."""

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fdir_service.estimation.layout import FaultLayout
+from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 
 MEASURED_STATE = {"gnss_alt": (0, -1.0), "baro_alt": (0, -1.0), "u": (1, 1.0), "w": (2, 1.0),
                   "theta": (3, 1.0), "q": (4, 1.0)}
@@ -67,6 +67,17 @@ class MeasurementModel:
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Predicted measurements (m, N) of a state-major cloud X (n, N); or (m,) of x (n,)."""
         return self.H @ X
+
+
+def state_gain(H: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(5, k) per row r of rows (k,) (-1: a zero column) the minimum-norm airframe change that moves
+    that row's prediction by one unit, h_r^T / |h_r|^2 with h_r the airframe part of H (m, n)."""
+    G = np.zeros((N_AIRFRAME, len(rows)))
+    for j, r in enumerate(np.asarray(rows, dtype=int).tolist()):
+        h = H[r, :N_AIRFRAME] if r >= 0 else np.zeros(N_AIRFRAME)
+        if h @ h > 0:
+            G[:, j] = h / (h @ h)
+    return G
 
 
 def measured_state(names: tuple[str, ...] | list[str], y: np.ndarray, mask: np.ndarray,

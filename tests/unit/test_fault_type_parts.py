@@ -139,7 +139,7 @@ def test_what_a_user_reads_per_type():
 
     from fdir_service.estimation.base import StepOutput
 
-    pred = TypedPredict(Still(), TypedEvolution(LAYOUT, MEAS.H), LAYOUT, MEAS.H)
+    pred = TypedPredict(Still(), TypedEvolution(LAYOUT, MEAS.H), LAYOUT)
     pred.predict(cloud(1), np.zeros((LAYOUT.nf, 1), dtype=bool), np.array([-0.03, 0.5]), None)
     x = cloud(1)[:, 0]
     x[N_AIRFRAME:] = [0.01, 0.02, 3.0, 0.02, -0.25]
@@ -189,11 +189,12 @@ def test_a_stuck_sensor_that_leaves_mode_1_re_anchors_half_its_particles_on_the_
     v[1] = [0.001, 0.009, 0.5]              # pi10 = 0.01: anchors (< 0.005), resets, stays
     y = MEAS.H @ X[:, 0] - X[N_AIRFRAME + 1, 0] + 0.1   # the sensor is back, reading theta + 0.1
     innov = y[:, None] - MEAS.H @ X
-    vals = part.anchor(X[N_AIRFRAME:], modes, v, np.full((LAYOUT.nf, 1), 0.01), innov, np.ones(3, bool))
+    vals = part.anchor(X[N_AIRFRAME:], modes, v, np.full((LAYOUT.nf, 1), 0.01), innov, frame(y))
     part.apply_anchor(X, vals)
     np.testing.assert_allclose(X[3], [0.05 + 0.1, 0.05, 0.05])       # only the first moved, onto it
+    no_theta = Frame.of(1.0, y, np.array([True, False, True]), np.zeros(2), MEAS)
     assert part.anchor(X[N_AIRFRAME:], modes, v, np.full((LAYOUT.nf, 1), 0.01), innov,
-                       np.array([True, False, True])) is None         # its row did not arrive
+                       no_theta) is None                             # its row did not arrive
 
 
 def test_a_noisy_faults_pfa_and_pmd_come_from_the_variance_test():
