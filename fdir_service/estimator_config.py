@@ -47,6 +47,10 @@ THRUST_ROW = "throttle"
 """A derived row (`thrust.ThrustCheck`): the throttle the accelerometer implies minus the commanded
 one (unitless, 0..1 scale); observed by a kinematic estimator that lists ax, az and airspeed and
 watches the throttle, so an engine that quits is seen though the IMU-driven model has no thrust."""
+AIRSPEED_ROW = "airspeed"
+"""The pitot observed as well as taken as an input (`inputs.RowSplit`): a kinematic estimator with a
+fault on the airspeed observes it as u - the head wind along body x (measurement.DERIVED_STATE), the
+wind being the fault entry's fault-free drift (docs/faults.md, "Pitot")."""
 MEASUREMENTS = OBSERVED_ROWS + INPUT_ROWS
 """Measurement rows an estimator may list."""
 ACTUATORS = ("delta_e", "delta_t")
@@ -54,9 +58,10 @@ ACTUATORS = ("delta_e", "delta_t")
 UNITS = {"m": 1.0, "m/s": 1.0, "rad": 1.0, "rad/s": 1.0, "deg": math.pi / 180.0,
          "deg/s": math.pi / 180.0, "1": 1.0}
 """A fault's display unit -> SI factor (value_SI = value_unit * factor)."""
-SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy")
+SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy", "blocked")
 """What a sensor fault does to its row (docs/faults.md): adds an offset; holds a value whatever the
-state does (stuck, blocked); multiplies its noise by k >= 1 (noisy)."""
+state does (stuck); multiplies its noise by k >= 1 (noisy); a blocked pitot (airspeed only) holds
+its total pressure, so its reading follows the altitude, V^2 = V0^2 + 2 g (h - h0)."""
 ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness")
 """What an actuator fault does to its input (docs/faults.md): adds an offset; holds a position
 whatever the command (jammed); scales the command by a gain 0..1 (loss of effectiveness; an engine
@@ -149,6 +154,9 @@ class FilterSettings:
     rate_window_s: float = 1.0           # the window of rate_sentinel = "window" (s)
     thrust_sigma: float = 0.01           # noise of the derived throttle row (0..1 throttle scale)
     q_tail: tuple[float, ...] = (0.0, 1.0)  # (share, scale): heavy-tailed pitch-rate process noise
+    wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.GustWind) ...
+    wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
+    wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -194,12 +202,14 @@ class EstimatorConfig:
 
     @property
     def derived_rows(self) -> tuple[str, ...]:
-        """Rows the filters make from other rows: (`THRUST_ROW`,) for a kinematic process model with
-        ax, az and airspeed that watches a throttle fault, else ()."""
+        """Rows the filters make from other rows, for a kinematic process model with ax, az and
+        airspeed: `THRUST_ROW` when it watches a throttle fault, then `AIRSPEED_ROW` when it watches
+        the pitot; else ()."""
         needs = {"ax", "az", "airspeed"} <= set(self.measurements)
-        watched = any(f.target == "delta_t" for f in self.faults)
-        kinematic = self.settings.process_model == "kinematic"
-        return (THRUST_ROW,) if needs and watched and kinematic else ()
+        if not (needs and self.settings.process_model == "kinematic"):
+            return ()
+        watched = {f.target for f in self.faults}
+        return tuple(r for r, t in ((THRUST_ROW, "delta_t"), (AIRSPEED_ROW, AIRSPEED_ROW)) if t in watched)
 
     @property
     def input_rows(self) -> tuple[str, ...]:
@@ -208,8 +218,9 @@ class EstimatorConfig:
 
     def observed_sigma(self) -> list[float]:
         """Measurement noise std (m_obs,) of the observed rows (SI; the throttle row's unitless)."""
-        listed = [s for r, s in zip(self.measurements, self.sigma, strict=True) if r not in INPUT_ROWS]
-        return listed + [self.settings.thrust_sigma] * len(self.derived_rows)
+        listed = dict(zip(self.measurements, self.sigma, strict=True))
+        derived = [self.settings.thrust_sigma if r == THRUST_ROW else listed[r] for r in self.derived_rows]
+        return [s for r, s in listed.items() if r not in INPUT_ROWS] + derived
 
     def state_process_std(self) -> tuple[float, ...]:
         """Per-step std (5,) of the airframe-state process noise (SI)."""
@@ -253,7 +264,8 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
     if not fid.isidentifier() or len(fid) > 7:
         raise ConfigError(f"{t.key('id')}: expected a short identifier (<= 7 chars, for "
                           f"MAVLink names like pfa_<id>), got {fid!r}")
-    target = t.take("target", "string", choices=tuple(r for r in rows if r not in INPUT_ROWS) + ACTUATORS)
+    watchable = tuple(r for r in rows if r not in INPUT_ROWS or r == AIRSPEED_ROW)
+    target = t.take("target", "string", choices=watchable + ACTUATORS)
     unit = t.take("unit", "string", choices=tuple(UNITS))
     amax = t.take("amplitude_max", "number", None, check=POSITIVE)
     spec = FaultSpec(
@@ -271,6 +283,9 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
     if spec.kind == "actuator" and spec.on_exit != "reset":
         raise ConfigError(f"{t.key('on_exit')}: an actuator fault has no sensor row to fold; "
                           f"expected \"reset\", got {spec.on_exit!r}")
+    if spec.fault_type == "blocked" and target != AIRSPEED_ROW:
+        raise ConfigError(f"{t.key('type')}: only the pitot can be blocked; expected target = "
+                          f"\"{AIRSPEED_ROW}\" for a blocked fault, got {target!r}")
     if spec.fault_type != "bias" and spec.on_exit != "reset":
         raise ConfigError(f"{t.key('on_exit')}: only a bias can be folded into the state; "
                           f"expected \"reset\" for a {spec.fault_type} fault, got {spec.on_exit!r}")
@@ -369,6 +384,9 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         rate_window_s=f.take("rate_window_s", "number", d.rate_window_s, check=POSITIVE),
         thrust_sigma=f.take("thrust_sigma", "number", d.thrust_sigma, check=POSITIVE),
         q_tail=tuple(f.take("q_tail", "numbers", d.q_tail, check=ALL_NON_NEGATIVE)),
+        wind_gust_sigma=f.take("wind_gust_sigma", "number", d.wind_gust_sigma, check=NON_NEGATIVE),
+        wind_gust_tau_s=f.take("wind_gust_tau_s", "number", d.wind_gust_tau_s, check=POSITIVE),
+        wind_mean_tau_s=f.take("wind_mean_tau_s", "number", d.wind_mean_tau_s, check=POSITIVE),
         imm=_imm(f, faults), gating=_gating(f), **words)
     f.finish()
     return s
@@ -408,6 +426,24 @@ def _check_kinematic(settings: FilterSettings, faults: tuple[FaultSpec, ...],
                           f"airspeed")
 
 
+def _check_pitot(settings: FilterSettings, faults: tuple[FaultSpec, ...], rows: tuple[str, ...]) -> None:
+    """A pitot fault needs the derived airspeed row: the kinematic model and its ax, az rows."""
+    pitot = [f.id for f in faults if f.target == AIRSPEED_ROW]
+    folding = [f.id for f in faults if f.target == AIRSPEED_ROW and f.on_exit != "reset"]
+    if folding:
+        raise ConfigError(f"faults {folding}: a pitot fault cannot fold into the state (the wind, "
+                          f"which nothing else sees, would explain it away); expected on_exit = \"reset\"")
+    drifting = [f.id for f in faults if f.target == AIRSPEED_ROW and f.drift_sigma > 0]
+    if drifting:
+        raise ConfigError(f"faults {drifting}: the pitot's fault-free motion is the wind's "
+                          f"(parts.wind_gust_sigma, wind_gust_tau_s, wind_mean_tau_s); expected no "
+                          f"drift_sigma on an airspeed fault")
+    if pitot and not (settings.process_model == "kinematic" and set(IMU_ROWS) <= set(rows)):
+        raise ConfigError(f"faults {pitot} watch the pitot, which only the kinematic model observes "
+                          f"(against its ground speed): expected parts.process_model = \"kinematic\" "
+                          f"and measurements.rows listing {', '.join(IMU_ROWS)}")
+
+
 def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> EstimatorConfig:
     """Validate a parsed estimator document; raise ConfigError naming the first bad key."""
     root = TomlTable(doc, "")
@@ -422,6 +458,7 @@ def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> Estimat
     settings = _settings(root, faults)
     _check_prior(settings, faults)
     _check_kinematic(settings, faults, rows)
+    _check_pitot(settings, faults, rows)
     op = _operating_point(root)
     root.finish()
     return EstimatorConfig(operating_point=op, measurements=rows, sigma=sigma, faults=faults,

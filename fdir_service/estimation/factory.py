@@ -45,6 +45,7 @@ from fdir_service.estimation.kinematic import KinematicProcess, PitchMoment
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.particle import ParticleFilter, Parts
+from fdir_service.estimation.pitot import wind_entry
 from fdir_service.estimation.predict import DriftPredict, GaussianPredict, ModeGatedPredict
 from fdir_service.estimation.process import LinearProcess, NonlinearProcess
 from fdir_service.estimation.rate_window import RateWindowAmplitude
@@ -246,7 +247,9 @@ def _regulariser(rec: Recipe, estimator: EstimatorConfig, amp: AmplitudePredicto
         return NoJitter()
     if rec.regularise == "parts" and rec.has_modes and estimator.settings.jitter == "per_mode" \
             and amp.layout.nf > 0:
-        return PerModeJitter(h, np.where(np.isfinite(amp.sigma), amp.sigma, 0.0) ** 2)
+        floor = np.where(np.isfinite(amp.sigma), amp.sigma, 0.0) ** 2
+        held = np.array([f.fault_type == "blocked" for f in estimator.faults], dtype=bool)
+        return PerModeJitter(h, np.where(held, 0.0, floor))     # a blocked reading holds: no spread
     return GlobalJitter(h, shrink=rec.regularise == "shrink")
 
 
@@ -268,7 +271,7 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     the jump's hand-overs between an item's types (one `TypedEvolution` shared by all)."""
     if not layout.typed:
         return parts
-    evolution = TypedEvolution(layout, meas.H)
+    evolution = TypedEvolution(layout, meas.H, wind_entry(estimator.faults))
     pairs = sibling_pairs(layout)
     switch = TypeSwitch(pairs, estimator.settings.pi_switch, evolution, layout.sensor_row) \
         if pairs.size or evolution.stuck.size else None
@@ -351,4 +354,9 @@ def build_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator
     filt = _BUILDERS[rec.family](name, estimator, rng, particles, x0)
     kinematic = rec.family == "particle" and estimator.settings.process_model == "kinematic"
     filt.rows = RowSplit.of(estimator, kinematic, trim_state(estimator))
+    if rec.family == "particle" and rec.has_modes and filt.rows.pitot is not None:
+        filt.wind = filt.rows.pitot
+        process = filt.parts.predict.process
+        if isinstance(process, KinematicProcess):
+            process.use_wind(filt.wind)
     return filt

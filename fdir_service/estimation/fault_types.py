@@ -7,6 +7,8 @@ two frames (`TypedEvolution`):
 
     bias           f+ = f                          an offset (a random walk with sigma_f)
     stuck          f+ = f - h_r (z+ - z)           the reading y_r = h_r z + f holds whatever z does
+    blocked        f+ = f - h_r (z+ - z) + g dh / y_r   a blocked pitot's reading follows the altitude h
+                                                   only (V^2 = V0^2 + 2 g (h - h0): docs/faults.md)
     jammed         f+ = f - (u_k - u_k-1)          the applied input u + f holds whatever u does
     effectiveness  f+ = f + phi (u_k - u_k-1)      the applied input (1 + phi) u follows the command
                    with phi = clip(f / u_k-1, -1, 0) scaled down; g = 1 + phi is the remaining gain
@@ -25,6 +27,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from fdir_service.estimation.inputs import G
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import state_gain
 
@@ -43,12 +46,19 @@ def _indices(layout: FaultLayout, kind: str) -> np.ndarray:
 class TypedEvolution:
     """The mode-1 evolution of typed fault entries (module docstring), vectorised per type.
 
-    layout: the fault layout; H (m, n): the measurement matrix (a stuck row's h_r is its airframe part).
+    layout: the fault layout; H (m, n): the measurement matrix (a stuck row's h_r is its airframe part);
+    wind: the pitot's wind entry (`pitot.wind_entry`, -1: none), which a stuck or blocked pitot's
+    reading does not follow (`pitot.PitotRow.evolve`).
     """
 
-    def __init__(self, layout: FaultLayout, H: np.ndarray) -> None:
+    def __init__(self, layout: FaultLayout, H: np.ndarray, wind: int = -1) -> None:
         self.H = np.asarray(H, dtype=float)
-        self.stuck = _indices(layout, "stuck")
+        self.stuck = np.sort(np.concatenate([_indices(layout, "stuck"), _indices(layout, "blocked")]))
+        """Entries whose reading holds (stuck, and blocked pitots, which also follow the altitude)."""
+        self.blocked = np.array([layout.type_of(j) == "blocked" for j in self.stuck], dtype=bool)
+        self.stuck_rows = layout.sensor_row[self.stuck]
+        self.wind = int(wind)
+        self.wind_row = int(layout.sensor_row[wind]) if wind >= 0 else -1
         self.stuck_h = np.asarray(H, dtype=float)[layout.sensor_row[self.stuck], :N_AIRFRAME] \
             if self.stuck.size else np.zeros((0, N_AIRFRAME))
         self.jammed = _indices(layout, "jammed")
@@ -70,6 +80,7 @@ class TypedEvolution:
         F = X[N_AIRFRAME:]
         if self.stuck.size:
             dz = self.stuck_h @ (X[:N_AIRFRAME] - z_before)          # (k, N)
+            dz[self.blocked] -= self._climb(X, z_before, F)
             F[self.stuck] -= dz * modes[self.stuck]
         if u_prev is not None and (self.jammed.size or self.weak.size):
             du = np.asarray(u[:2], dtype=float) - u_prev[:2]
@@ -77,6 +88,14 @@ class TypedEvolution:
             self._scale_weak(F, modes, du, u_prev)
         if self.noisy.size:
             F[self.noisy] = np.maximum(F[self.noisy], 0.0)
+
+    def _climb(self, X: np.ndarray, z_before: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """(b, N) m/s: a blocked pitot's reading change over the step, d V = g dh / V from V^2 = V0^2
+        + 2 g (h - h0) (the trapped total pressure against the falling static pressure; rho cancels),
+        dh = -(p_d+ - p_d) m, V the particle's reading before the step (its whole row, >= 5 m/s)."""
+        H = self.H[self.stuck_rows[self.blocked]]                        # (b, n)
+        V = np.maximum(H[:, :N_AIRFRAME] @ z_before + H[:, N_AIRFRAME:] @ F, 5.0)
+        return G * (z_before[0] - X[0]) / V
 
     def _scale_weak(self, F: np.ndarray, modes: np.ndarray, du: np.ndarray, u_prev: np.ndarray) -> None:
         """Effectiveness entries follow the command change by their gain loss phi (in place)."""
@@ -106,9 +125,10 @@ class TypedPredict:
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:
-        z_before = X[:N_AIRFRAME].copy() if self.evolution.needs_state else None
+        ev = self.evolution
+        z_before = X[:N_AIRFRAME].copy() if ev.needs_state else None
         Xp = self.inner.predict(X, modes, u, rng)
-        self.evolution.apply(z_before, Xp, modes, u, self.u_prev)
+        ev.apply(z_before, Xp, modes, u, self.u_prev)
         self.u_prev = np.array(u[:2], dtype=float)
         return Xp
 
@@ -150,6 +170,9 @@ class TypedCorrection:
         self.evolution = evolution
         self.faults = np.concatenate([evolution.stuck, evolution.noisy])
         self.noisy = np.r_[np.zeros(evolution.stuck.size, bool), np.ones(evolution.noisy.size, bool)]
+        self.held = np.r_[~evolution.blocked, np.zeros(evolution.noisy.size, bool)]
+        """Weighed by the state-free predictive: stuck rows, not a blocked pitot (an autopilot that
+        holds the airspeed makes every pitot look held; its blockage shows in the altitude term)."""
         self.rows = np.asarray(rows, dtype=int)[self.faults]
         self.sigma = np.asarray(sigma, dtype=float)[self.rows] if self.faults.size else np.zeros(0)
 
@@ -178,7 +201,8 @@ class TypedCorrection:
         s2 = (self.sigma[present] ** 2)[:, None]
         v0 = s2 + spread[:, None]
         k = 1.0 + np.maximum(X[N_AIRFRAME + js], 0.0)
-        v1 = np.where(self.noisy[present, None], v0 + (k * k - 1.0) * s2, s2)
+        v1 = np.where(self.noisy[present, None], v0 + (k * k - 1.0) * s2,
+                      np.where(self.held[present, None], s2, v0))
         v1 = np.where(modes[js], v1, v0)
         return (-0.5 * e * e * (1.0 / v1 - 1.0 / v0) - 0.5 * np.log(v1 / v0)).sum(axis=0)
 
@@ -208,7 +232,9 @@ class TypeSwitch:
     this frame's reading, x += g_r (y_r - h_r z), g_r = h_r^T / |h_r|^2. While the sensor was held,
     the state it measures was estimated without it (the altitude from GNSS alone, metres off after
     a climb); without the anchor the returning barometer disagrees with that state and is declared
-    biased until the state has crept back (most false alarms after a stuck barometer).
+    biased until the state has crept back (most false alarms after a stuck barometer). A returning
+    pitot anchors nothing: the wind it measures against u is what the anchor would move, and nothing
+    else sees the wind, so an anchored wind would explain any standing pitot fault away (`pitot.py`).
 
     pairs (p, 2): `sibling_pairs`; rate: the hand-over probability per step and pair; evolution:
     the `TypedEvolution` (its stuck entries and their rows' h_r); rows (nf,): each entry's row.
@@ -222,6 +248,8 @@ class TypeSwitch:
         self.stuck_rows = np.asarray(rows, dtype=int)[self.stuck] if self.stuck.size else self.stuck
         self.stuck_g = state_gain(evolution.H, self.stuck_rows) if self.stuck.size \
             else np.zeros((N_AIRFRAME, 0))                                                  # (5, k)
+        if evolution is not None and evolution.wind >= 0:     # a returning pitot moves no state
+            self.stuck_g[:, self.stuck_rows == evolution.wind_row] = 0.0
 
     def anchor(self, F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
                innov: np.ndarray, frame: Frame) -> np.ndarray | None:
@@ -263,8 +291,9 @@ class TypeSwitch:
         for (a, b), vv in zip(self.pairs.tolist(), v, strict=True):
             go = modes[a] & ~modes[b] & (vv < self.rate)
             if go.any():
-                F[b, go] = F[a, go]
-                F[a, go] = 0.0 if reset_to is None else reset_to[a]
+                back = 0.0 if reset_to is None else reset_to[a]
+                F[b, go] += F[a, go] - back        # the row's offset F[a] + F[b] is kept
+                F[a, go] = back
                 modes[a, go] = False
                 modes[b, go] = True
 

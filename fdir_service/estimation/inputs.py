@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from fdir_service.estimation.pitot import PitotRow, pitot_row
 from fdir_service.estimation.thrust import ThrustCheck
-from fdir_service.estimator_config import INPUT_ROWS, EstimatorConfig
+from fdir_service.estimator_config import AIRSPEED_ROW, INPUT_ROWS, THRUST_ROW, EstimatorConfig
 
 G = 9.80665
 """Standard gravity (m/s^2)."""
@@ -41,7 +42,8 @@ class RowSplit:
     """
 
     def __init__(self, observed: np.ndarray, imu: np.ndarray, imu_as_input: bool,
-                 hold: np.ndarray | None = None, thrust: ThrustCheck | None = None) -> None:
+                 hold: np.ndarray | None = None, thrust: ThrustCheck | None = None,
+                 pitot: PitotRow | None = None) -> None:
         self.observed = np.asarray(observed, dtype=int)
         self.imu = np.asarray(imu, dtype=int)
         self.imu_as_input = bool(imu_as_input)
@@ -49,6 +51,9 @@ class RowSplit:
         self.hold = np.zeros(self.imu.size) if hold is None else np.asarray(hold, dtype=float).copy()
         self.thrust = thrust
         """A `ThrustCheck` when the estimator derives the throttle row (held ax, az, airspeed)."""
+        self.pitot = pitot
+        """A `pitot.PitotRow` when the airspeed is also an observed row (`AIRSPEED_ROW`): the pitching
+        moment and the thrust check then take it less its estimated fault."""
 
     @classmethod
     def of(cls, estimator: EstimatorConfig, imu_as_input: bool, z_trim: np.ndarray) -> RowSplit:
@@ -57,9 +62,10 @@ class RowSplit:
         imu = [rows.index(r) for r in INPUT_ROWS if r in rows]       # INPUT_ROWS order
         observed = [j for j, r in enumerate(rows) if r not in INPUT_ROWS]
         trim = trim_inputs(z_trim)
-        thrust = ThrustCheck(estimator.airframe_params()) if estimator.derived_rows else None
+        derived = estimator.derived_rows
+        thrust = ThrustCheck(estimator.airframe_params()) if THRUST_ROW in derived else None
         return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]),
-                   thrust)
+                   thrust, _pitot(estimator) if AIRSPEED_ROW in derived else None)
 
     def split(self, y: np.ndarray, mask: np.ndarray, u: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -72,13 +78,25 @@ class RowSplit:
         self.hold[fresh] = y[self.imu][fresh]
         u = np.asarray(u, dtype=float)[:2]
         y_obs, mask_obs = y[self.observed], mask[self.observed]
-        if self.thrust is not None:             # hold = [ax, az, airspeed]: the derived throttle row
-            ax, az, V = self.hold
+        held = self.hold.copy()
+        if self.pitot is not None:              # hold = [ax, az, airspeed]: the trusted airspeed
+            held[2] = self.pitot.trusted(held[2])
+        if self.thrust is not None:             # the derived throttle row
+            ax, az, V = held
             y_obs = np.append(y_obs, self.thrust.implied_throttle(ax, az, V, u[0]) - u[1])
             mask_obs = np.append(mask_obs, bool(fresh[0]))
+        if self.pitot is not None:              # the derived airspeed row: the pitot's own reading
+            y_obs = np.append(y_obs, self.hold[2])
+            mask_obs = np.append(mask_obs, bool(fresh[2]))
         if self.imu_as_input:
-            u = np.concatenate([u, self.hold])
+            u = np.concatenate([u, held])
         return y_obs, mask_obs, u
+
+
+def _pitot(estimator: EstimatorConfig) -> PitotRow:
+    """The `PitotRow` of an estimator that observes the airspeed (`AIRSPEED_ROW` derived)."""
+    sigma = estimator.sigma[estimator.measurements.index(AIRSPEED_ROW)]
+    return pitot_row(estimator, estimator.observed.index(AIRSPEED_ROW), sigma)
 
 
 NO_SPLIT = RowSplit(np.zeros(0, dtype=int), np.zeros(0, dtype=int), False)

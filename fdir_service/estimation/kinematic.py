@@ -48,10 +48,11 @@ class PitchMoment:
         p = self.p
         return 0.5 * p.rho * V * V * p.S * p.c / p.Jy
 
-    def qdot(self, q: np.ndarray, de, a_z: float, V: float) -> np.ndarray:
-        """q' (N,) for pitch rates q (N,), elevator de (scalar or (N,)) rad, a_z m/s^2, V m/s."""
+    def qdot(self, q: np.ndarray, de, a_z: float, V) -> np.ndarray:
+        """q' (N,) for pitch rates q (N,), elevator de (scalar or (N,)) rad, a_z m/s^2, V m/s (scalar
+        or (N,): each particle's own airspeed)."""
         p = self.p
-        V = max(float(V), 1.0)
+        V = max(float(V), 1.0) if np.ndim(V) == 0 else np.maximum(V, 1.0)
         qbar_S = 0.5 * p.rho * V * V * p.S
         qc = q * (p.c / (2.0 * V))
         alpha = (-a_z * p.m / qbar_S - p.C_L0 - p.C_Lq * qc - p.C_Lde * de) / p.C_La
@@ -80,6 +81,20 @@ class KinematicProcess:
             self.B_actuator[3, self._elevator] = 0.5 * self.dt * gain
             self.B_actuator[4, self._elevator] = gain
 
+    def use_wind(self, pitot) -> None:
+        """Take each particle's own airspeed u + W from the pitot's wind (a `pitot.PitotRow`) once
+        it has started: a particle that holds the pitot faulty then predicts the pitching moment of
+        the airspeed it believes, not of the reading."""
+        self.pitot = pitot
+
+    pitot = None
+
+    def _airspeed(self, X: np.ndarray, V: float):
+        """The pitching moment's airspeed (m/s): the trusted reading V, or per particle u + W."""
+        if self.pitot is None or self.pitot.mean is None:
+            return V
+        return X[1] + X[N_AIRFRAME + self.pitot.wind]
+
     def _elevator_of(self, X: np.ndarray, de: float):
         """delta_e each particle's elevator sees: the command plus its elevator fault entries."""
         for j in self._elevator:
@@ -103,5 +118,5 @@ class KinematicProcess:
         out[3] += h * q
         if self.moment is not None:
             de = self._elevator_of(X, float(u[0]))
-            out[4] += h * self.moment.qdot(q, de, az, float(u[4]))
+            out[4] += h * self.moment.qdot(q, de, az, self._airspeed(X, float(u[4])))
         return out[:, 0] if one else out

@@ -17,6 +17,10 @@ from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 MEASURED_STATE = {"gnss_alt": (0, -1.0), "baro_alt": (0, -1.0), "u": (1, 1.0), "w": (2, 1.0),
                   "theta": (3, 1.0), "q": (4, 1.0)}
 """measurement name -> (airframe-state index, coefficient)."""
+DERIVED_STATE = {"airspeed": (1, 1.0)}
+"""Derived rows that observe an airframe state: the pitot's airspeed, V = |u - w_x, w - w_z| ~ u - w_x
+(within 0.1 % below 3 deg of angle of attack), the head wind w_x along body x carried by the pitot
+fault entries' fault-free drift. Not a state measurement for initialising (`measured_state`)."""
 
 
 @dataclass
@@ -34,9 +38,9 @@ class MeasurementModel:
         m = len(layout.measurements)
         H = np.zeros((m, layout.n))
         for r, name in enumerate(layout.measurements):
-            if name in MEASURED_STATE:                  # a derived row observes no airframe state
-                col, coef = MEASURED_STATE[name]
-                H[r, col] = coef
+            row = MEASURED_STATE.get(name, DERIVED_STATE.get(name))   # the throttle row: no state
+            if row is not None:
+                H[r, row[0]] = row[1]
         for j, r in enumerate(np.maximum(layout.sensor_row, layout.direct_row)):
             if r >= 0:
                 H[r, layout.fault_index[j]] = 1.0

@@ -30,6 +30,7 @@ from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.inputs import NO_SPLIT
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
+from fdir_service.estimation.pitot import NO_WIND
 from fdir_service.estimation.slots import (
     Correction,
     JumpPart,
@@ -99,12 +100,15 @@ class ParticleFilter:
     # ------------------------------------------------------------------ the step
     rows = NO_SPLIT
     """The estimator's rows into observed rows and inputs (`inputs.RowSplit`; set by the factory)."""
+    wind = NO_WIND
+    """The wind of an estimator that watches the pitot (`pitot.PitotRow`, set by the factory)."""
 
     def step(self, t: float, y: np.ndarray, mask: np.ndarray, u: np.ndarray) -> StepOutput:
         p, rng = self.parts, self.rng
         y, mask, u = self.rows.split(y, mask, u)
         frame = Frame.of(t, y, mask, u, self.meas)
         X = p.predict.predict(self.X, self.modes, frame.u, rng)
+        self.wind.evolve(X, self.modes, y, mask, rng)
         move_lw = p.jump.jump(X, self.modes, self.w, frame, rng)
         bonus = p.sentinel_weighting.weigh(X, frame, p.jump.sentinels, rng)
         ll = p.correction.update(X, self.w, self.modes, frame)
@@ -124,7 +128,9 @@ class ParticleFilter:
         if resampled:
             w = self._resample(w)
         self.w = w
-        return self._output(t, n_eff, resampled)
+        out = self._output(t, n_eff, resampled)
+        self.wind.follow(out.fault_estimate)
+        return out
 
     # ------------------------------------------------------------------ its pieces
     def _drop_diverged(self, X: np.ndarray, ll: np.ndarray) -> np.ndarray:

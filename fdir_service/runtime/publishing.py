@@ -84,14 +84,15 @@ class Change(NamedTuple):
 
 def value_text(fault: FaultChannel, fault_type: str, value: float) -> str:
     """A fault's user-facing value in words: '+50.1 m' (bias, in the fault's unit), 'at 3.2 deg/s'
-    (stuck reading, jammed position), 'x4.1' (noisy: noise multiplier k), '0%' (effectiveness g)."""
+    (stuck or blocked reading, jammed position), 'x4.1' (noisy: noise multiplier k), '0%'
+    (effectiveness g)."""
     if fault_type == "noisy":
         return f"x{value:.1f}"
     if fault_type == "effectiveness":
         return f"{round(100 * value)}%" if math.isfinite(value) else f"{value}%"
     val = value / fault.unit_scale
     unit = "" if fault.unit == "1" else f" {fault.unit}"
-    if fault_type in ("stuck", "jammed"):
+    if fault_type in ("stuck", "jammed", "blocked"):
         return f"at {val:.1f}{unit}"
     return f"{val:+.1f}{unit}"
 

@@ -44,29 +44,32 @@ def test_an_engine_that_quits_implies_no_throttle(catalogue, params):
 
 
 def test_the_derived_row_follows_the_observed_rows_and_a_throttle_fault_adds_to_it(catalogue):
-    assert catalogue.derived_rows == ("throttle",) and catalogue.observed[-1] == "throttle"
+    assert catalogue.derived_rows == ("throttle", "airspeed") and catalogue.observed[-2] == "throttle"
+    T = catalogue.observed.index("throttle")
     split = RowSplit.of(catalogue, True, trim_state(catalogue))
     rows = catalogue.measurements
     y = np.zeros(len(rows))
     y[[rows.index(r) for r in ("ax", "az", "airspeed")]] = [0.5, -9.7, 40.0]
     mask = np.ones(len(rows), bool)
     y_obs, mask_obs, u = split.split(y, mask, np.array([-0.08, 0.5]))
-    assert y_obs.size == len(catalogue.observed) and mask_obs[-1]
-    assert y_obs[-1] == pytest.approx(split.thrust.implied_throttle(0.5, -9.7, 40.0, -0.08) - 0.5)
+    assert y_obs.size == len(catalogue.observed) and mask_obs[T]
+    assert y_obs[T] == pytest.approx(split.thrust.implied_throttle(0.5, -9.7, 40.0, -0.08) - 0.5)
+    assert y_obs[-1] == 40.0                                                    # the pitot's own row
     mask[rows.index("ax")] = False                                              # no fresh IMU: no row
-    assert not split.split(y, mask, np.array([-0.08, 0.5]))[1][-1]
+    assert not split.split(y, mask, np.array([-0.08, 0.5]))[1][T]
     layout = FaultLayout.from_estimator(catalogue)
     meas = MeasurementModel.build(layout, catalogue.observed_sigma())
     dt = [f.id for f in catalogue.faults].index("dt_eff")
-    assert meas.H[-1, N_AIRFRAME + dt] == 1.0 and not meas.H[-1, :N_AIRFRAME].any()
+    assert meas.H[T, N_AIRFRAME + dt] == 1.0 and not meas.H[T, :N_AIRFRAME].any()
 
 
 def test_a_throttle_entry_jumps_to_the_throttle_the_row_shows(catalogue):
     filt = build_filter("RJMRPF", catalogue, np.random.default_rng(0), particles=300)
     amp = filt.parts.jump.amplitude
     G_, avail, sigma = amp.gain(np.ones(len(catalogue.observed), bool))
+    T = catalogue.observed.index("throttle")
     for name in ("dt", "dt_eff"):
         j = [f.id for f in catalogue.faults].index(name)
-        assert avail[j] and G_[j, -1] == 1.0 and sigma[j] == catalogue.settings.thrust_sigma
+        assert avail[j] and G_[j, T] == 1.0 and sigma[j] == catalogue.settings.thrust_sigma
     de = [f.id for f in catalogue.faults].index("de")
     assert avail[de] and np.isfinite(sigma[de])                 # the elevator keeps its own fit

@@ -1,0 +1,126 @@
+"""The pitot observed against the ground speed, and the wind it measures (docs/faults.md, "Pitot").
+
+A kinematic estimator that watches the pitot observes its airspeed row as V ~ u + W
+(`measurement.DERIVED_STATE`): u the body-axis speed over the ground, W = -w_x the head wind along
+body x. The wind is the pitot's bias entry in its fault-free mode (`wind_entry`); in mode 1 the
+entry is the wind plus the pitot's offset. `PitotRow` is the wind's model and the pitot's plumbing:
+- `start`: on the first frame with a pitot reading the wind starts at y - u per particle (it is
+  unknown and may be 10 m/s: left to the sentinels, a blockage would take it);
+- `evolve`, after each prediction: a Gauss-Markov wind, a mean plus a Dryden-shaped gust (the
+  first-order form of MIL-F-8785C's longitudinal gust, sigma_u over L_u / V):
+
+      W+ = M + a (W - M) + sigma sqrt(1 - a^2) e,    a = exp(-dt / tau),   e ~ N(0, 1)
+
+  on the mode-0 particles, with M the mean wind (one value, following the mode-0 particles' mean
+  with time constant tau_m while the pitot is fault-free). A gust returns to the mean, so an
+  offset that stands longer than the gusts last is a fault, not wind; a stuck or blocked pitot's
+  entry anti-tracks the wind's move (its reading does not see the air), so the wind keeps drifting
+  unobserved under a held pitot and after a long fault the cloud spans the winds it may have become;
+- `follow` / `trusted`: the pitching moment and the thrust check take the airspeed less the pitot's
+  estimated fault, so a blocked pitot does not make the elevator or the engine look faulty.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fdir_service.estimation.layout import N_AIRFRAME
+
+
+def wind_entry(faults) -> int:
+    """The fault entry carrying the wind: the first bias entry on the airspeed row (faults (nf,)
+    `FaultSpec`s); -1 when there is none."""
+    for j, f in enumerate(faults):
+        if f.target == "airspeed" and f.fault_type == "bias":
+            return j
+    return -1
+
+
+class PitotRow:
+    """The pitot's wind and trusted airspeed (module docstring).
+
+    entries (k,): the fault entries on the pitot; wind: the wind's entry (-1: none); held (h,): the
+    stuck and blocked entries on the pitot; row: the derived airspeed row among the observed rows;
+    sigma (m/s): its noise (the spread of the wind's start); dt (s); gust (sigma m/s, tau s, tau_m s).
+    """
+
+    def __init__(self, entries: np.ndarray, wind: int, held: np.ndarray, row: int, sigma: float,
+                 dt: float = 0.05, gust: tuple[float, float, float] = (1.5, 10.0, 60.0)) -> None:
+        self.entries = np.asarray(entries, dtype=int)
+        self.wind = int(wind)
+        self.held = np.asarray(held, dtype=int)
+        self.row = int(row)
+        self.sigma = float(sigma)
+        g_sigma, tau, tau_m = (float(v) for v in gust)
+        self.a = math.exp(-dt / tau)
+        self.step_sigma = g_sigma * math.sqrt(1.0 - self.a * self.a)
+        self.mean_rate = min(dt / tau_m, 1.0)
+        self.mean: float | None = None
+        """m/s: the mean wind M the gusts return to (None before the first pitot reading)."""
+        self.error = 0.0
+        """m/s: the pitot's estimated fault after the last step (`follow`)."""
+
+    def trusted(self, airspeed: float) -> float:
+        """The airspeed (m/s) the models take: the reading less the estimated fault."""
+        return airspeed - self.error
+
+    def evolve(self, X: np.ndarray, modes: np.ndarray, y: np.ndarray, mask: np.ndarray,
+               rng: np.random.Generator) -> None:
+        """After the prediction of the cloud X (n, N), modes (nf, N), with the frame's observed rows
+        y, mask (m_obs,): start the wind on the first pitot reading, else move it (in place)."""
+        if self.wind < 0:
+            return
+        if self.mean is None:
+            self._start(X, y, mask, rng)
+            return
+        W = X[N_AIRFRAME + self.wind]
+        free = ~modes[self.wind]
+        step = (self.mean + self.a * (W - self.mean) + self.step_sigma * rng.standard_normal(W.size)) - W
+        step *= free
+        W += step
+        X[N_AIRFRAME + self.held] -= step * modes[self.held]
+        self._follow_mean(W, free & ~modes[self.held].any(axis=0))
+
+    def _start(self, X: np.ndarray, y: np.ndarray, mask: np.ndarray, rng: np.random.Generator) -> None:
+        """On the first frame whose pitot arrived: X[wind] = y_pitot - u + N(0, sigma^2) per particle."""
+        if not mask[self.row] or not np.isfinite(y[self.row]):
+            return
+        X[N_AIRFRAME + self.wind] = y[self.row] - X[1] + self.sigma * rng.standard_normal(X.shape[1])
+        self.mean = float(np.mean(X[N_AIRFRAME + self.wind]))
+
+    def _follow_mean(self, W: np.ndarray, fault_free: np.ndarray) -> None:
+        """M follows the fault-free particles' mean wind while they are most of the cloud."""
+        if 2 * np.count_nonzero(fault_free) > W.size:
+            self.mean += self.mean_rate * (float(W[fault_free].mean()) - self.mean)
+
+    def follow(self, fault_estimate: np.ndarray) -> None:
+        """After a step: the sum of the pitot entries' estimates (nf,) SI, each the change from its
+        fault-free value, for the next frame's `trusted` airspeed (0 if not finite)."""
+        err = float(np.sum(fault_estimate[self.entries]))
+        self.error = err if np.isfinite(err) else 0.0
+
+
+class NoWind:
+    """An estimator that does not watch the pitot: no wind to move, no fault to follow."""
+
+    def evolve(self, X: np.ndarray, modes: np.ndarray, y: np.ndarray, mask: np.ndarray,
+               rng: np.random.Generator) -> None:
+        """Nothing moves."""
+
+    def follow(self, fault_estimate: np.ndarray) -> None:
+        """Nothing to follow."""
+
+
+NO_WIND = NoWind()
+"""The wind part of a filter without a pitot (shared, stateless)."""
+
+
+def pitot_row(estimator, observed_row: int, sigma: float) -> PitotRow:
+    """The `PitotRow` of an estimator (`EstimatorConfig`) that observes the airspeed at observed_row."""
+    faults, s = estimator.faults, estimator.settings
+    entries = [j for j, f in enumerate(faults) if f.target == "airspeed"]
+    held = [j for j in entries if faults[j].fault_type in ("stuck", "blocked")]
+    return PitotRow(np.array(entries), wind_entry(faults), np.array(held, dtype=int), observed_row, sigma,
+                    estimator.dt_s, (s.wind_gust_sigma, s.wind_gust_tau_s, s.wind_mean_tau_s))

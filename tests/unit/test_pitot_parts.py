@@ -1,0 +1,187 @@
+"""The pitot parts on their own (fdir_service/estimation/pitot.py, the blocked type in fault_types.py,
+the wind's fold in jump.ExitFold): the airspeed row observed against u with the wind in its bias
+entry, the wind started on the first reading and held under another pitot type, a blocked pitot's
+reading following the altitude, a returning pitot re-anchoring the wind, and the file's checks."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from fdir_service.errors import ConfigError
+from fdir_service.estimation.factory import build_filter
+from fdir_service.estimation.fault_types import TypedEvolution, TypeSwitch, sibling_pairs
+from fdir_service.estimation.frame import Frame
+from fdir_service.estimation.inputs import G
+from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+from fdir_service.estimation.measurement import MeasurementModel
+from fdir_service.estimation.pitot import PitotRow, wind_entry
+from fdir_service.estimator_config import estimator_document, load_estimator, parse_estimator
+
+ROWS = ("u", "airspeed")
+SIGMA = np.array([1.5, 0.75])
+# the pitot's bias entry (it carries the wind), its blockage, a u-sensor bias
+LAYOUT = FaultLayout(("pitot", "pit_blk", "u"), ("sensor",) * 3, ("airspeed", "airspeed", "u"), ROWS,
+                     ("bias", "blocked", "bias"))
+MEAS = MeasurementModel.build(LAYOUT, SIGMA)
+WIND, BLK = 0, 1
+
+
+def cloud(N: int = 3) -> np.ndarray:
+    X = np.zeros((LAYOUT.n, N))
+    X[0], X[1], X[3] = -500.0, 32.0, 0.05
+    X[N_AIRFRAME + WIND] = 8.0                     # an 8 m/s head wind: the pitot reads 40
+    return X
+
+
+def test_the_airspeed_row_measures_u_plus_the_pitot_entries_and_the_wind_is_its_drifting_bias():
+    assert MEAS.H[1, 1] == 1.0 and MEAS.H[1, N_AIRFRAME + WIND] == 1.0 and MEAS.H[1, N_AIRFRAME + BLK] == 1.0
+    assert not MEAS.H[1, N_AIRFRAME + 2]
+    np.testing.assert_allclose(MEAS.predict(cloud())[1], 40.0)
+    est = load_estimator("aerosonde-catalogue")
+    j = wind_entry(est.faults)
+    assert est.faults[j].id == "pitot" and est.observed[-1] == "airspeed"
+    assert est.derived_rows == ("throttle", "airspeed")
+
+
+def pitot_part(gust=(1.5, 10.0, 60.0)) -> PitotRow:
+    return PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, dt=0.05, gust=gust)
+
+
+def test_the_wind_starts_on_the_first_pitot_reading_and_the_airspeed_input_is_trusted_less_its_fault():
+    part = pitot_part()
+    X = cloud(2000)
+    X[N_AIRFRAME + WIND] = 0.0
+    modes = np.zeros((LAYOUT.nf, 2000), dtype=bool)
+    y = np.array([32.0, 41.0])
+    part.evolve(X, modes, y, np.array([True, False]), np.random.default_rng(0))  # no pitot yet
+    assert not X[N_AIRFRAME + WIND].any() and part.mean is None
+    part.evolve(X, modes, y, np.array([True, True]), np.random.default_rng(0))
+    w = X[N_AIRFRAME + WIND]
+    assert abs(w.mean() - 9.0) < 0.05 and abs(w.std() - 0.75) < 0.05      # y - u, spread by sigma
+    assert part.mean == pytest.approx(w.mean())
+    part.follow(np.array([1.5, 2.0, 7.0]))
+    assert part.trusted(43.0) == pytest.approx(39.5)                        # 43 - (1.5 + 2.0)
+    part.follow(np.array([np.nan, 0.0, 0.0]))
+    assert part.trusted(43.0) == 43.0
+
+
+def test_the_gusts_return_to_the_mean_wind_with_their_sigma_and_time_constant():
+    part = pitot_part(gust=(1.5, 10.0, 1e9))        # a mean that does not move
+    part.mean = 8.0
+    X = cloud(4000)
+    modes = np.zeros((LAYOUT.nf, 4000), dtype=bool)
+    rng = np.random.default_rng(1)
+    X[N_AIRFRAME + WIND] = 12.0                      # a 4 m/s gust
+    for _ in range(200):                             # 10 s = one time constant
+        part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), rng)
+    w = X[N_AIRFRAME + WIND]
+    assert w.mean() == pytest.approx(8.0 + 4.0 * np.exp(-1.0), abs=0.1)
+    assert w.std() == pytest.approx(1.5 * np.sqrt(1.0 - np.exp(-2.0)), abs=0.05)
+    for _ in range(2000):                            # 100 s: stationary
+        part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), rng)
+    assert X[N_AIRFRAME + WIND].std() == pytest.approx(1.5, abs=0.06)
+
+
+def test_a_held_pitot_does_not_follow_the_wind_and_the_mean_follows_only_fault_free_winds():
+    part = pitot_part(gust=(1.5, 10.0, 60.0))
+    part.mean = 8.0
+    X = cloud(4)
+    X[N_AIRFRAME + WIND] = 9.0
+    X[N_AIRFRAME + BLK] = 1.0
+    modes = np.zeros((LAYOUT.nf, 4), dtype=bool)
+    modes[BLK, :3] = True                            # three of four particles: the pitot is blocked
+    before = MEAS.predict(X)[1].copy()
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), np.random.default_rng(2))
+    after = MEAS.predict(X)[1]
+    np.testing.assert_allclose(after[:3], before[:3])                       # held readings
+    assert after[3] != before[3]                                           # the air moves the other
+    assert part.mean == 8.0                                                # most are faulty: M holds
+    modes[BLK] = False
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), np.random.default_rng(2))
+    assert 8.0 < part.mean < 8.1                                           # M moves towards 9 by dt / 60 s
+
+
+def test_a_blocked_pitot_in_mode_1_reads_g_dh_over_v_more_in_a_climb_and_holds_in_level_flight():
+    ev = TypedEvolution(LAYOUT, MEAS.H, WIND)
+    X = cloud(2)
+    X[N_AIRFRAME + BLK] = 1.0                        # blocked while reading 41 m/s
+    before = X[:N_AIRFRAME].copy()
+    X[0] -= [10.0, 0.0]                              # particle 0 climbed 10 m, particle 1 did not
+    X[1] -= 2.0                                      # both slowed by 2 m/s over the ground
+    modes = np.zeros((LAYOUT.nf, 2), dtype=bool)
+    modes[BLK] = True
+    ev.apply(before, X, modes, np.zeros(2), None)
+    reading = MEAS.predict(X)[1]
+    np.testing.assert_allclose(reading, [41.0 + G * 10.0 / 41.0, 41.0], rtol=1e-3)
+    assert np.sqrt(41.0**2 + 2 * G * 10.0) == pytest.approx(reading[0], abs=0.1)   # first order in dh
+
+
+def test_a_returning_pitot_moves_no_state():
+    ev = TypedEvolution(LAYOUT, MEAS.H, WIND)
+    part = TypeSwitch(sibling_pairs(LAYOUT), 0.0, ev, LAYOUT.sensor_row)
+    X = cloud(2)
+    X[N_AIRFRAME + BLK] = 3.0                        # held 3 m/s above u + wind
+    modes = np.zeros((LAYOUT.nf, 2), dtype=bool)
+    modes[BLK] = True
+    v = np.full((LAYOUT.nf, 2), 0.9)
+    v[BLK] = [0.001, 0.5]                            # the first would anchor, were it another sensor
+    y = np.array([32.0, 41.0])
+    innov = y[:, None] - MEAS.H @ X
+    frame = Frame.of(1.0, y, np.ones(2, dtype=bool), np.zeros(2), MEAS)
+    before = X.copy()
+    part.apply_anchor(X, part.anchor(X[N_AIRFRAME:], modes, v, np.full((LAYOUT.nf, 1), 0.01), innov, frame))
+    np.testing.assert_array_equal(X, before)
+
+
+def test_a_hand_over_between_types_keeps_the_rows_offset():
+    ev = TypedEvolution(LAYOUT, MEAS.H, WIND)
+    assert sorted(map(tuple, sibling_pairs(LAYOUT).tolist())) == [(WIND, BLK), (BLK, WIND)]
+    part = TypeSwitch(np.array([[WIND, BLK]]), 1.0, ev, LAYOUT.sensor_row)
+    X = cloud(1)
+    X[N_AIRFRAME + WIND] = 11.0                      # wind 8 (fault-free) + a 3 m/s bias in mode 1
+    modes = np.zeros((LAYOUT.nf, 1), dtype=bool)
+    modes[WIND] = True
+    before = MEAS.predict(X)[1].copy()
+    part.apply(X[N_AIRFRAME:], modes, np.array([8.0, 0.0, 0.0]), np.random.default_rng(0))
+    assert modes[BLK, 0] and not modes[WIND, 0]
+    np.testing.assert_allclose(X[N_AIRFRAME:N_AIRFRAME + 2, 0], [8.0, 3.0])
+    np.testing.assert_allclose(MEAS.predict(X)[1], before)
+
+
+def test_the_catalogue_filter_watches_the_pitot_and_steps():
+    est = load_estimator("aerosonde-catalogue")
+    filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=200,
+                        x0=np.array([-500.0, 32.0, 1.5, 0.05, 0.0]))     # as the first frame starts it
+    assert filt.wind is filt.rows.pitot and filt.wind.wind == wind_entry(est.faults)
+    y = np.array([500.0, 500.0, 32.0, 1.5, 0.05, 0.0, 0.49, -9.78, 40.0])
+    out = filt.step(0.05, y, np.ones(9, dtype=bool), np.array([-0.02, 0.5]))
+    j = wind_entry(est.faults)
+    assert abs(out.x_mean[N_AIRFRAME + j] - 8.0) < 1.0                     # the head wind, 40 - 32
+
+
+def _doc_with(fault: dict) -> dict:
+    doc, _ = estimator_document("aerosonde-robust")
+    doc = copy.deepcopy(doc)
+    doc["faults"].append(fault)
+    return doc
+
+
+def test_only_the_pitot_can_be_blocked_and_only_the_kinematic_model_watches_it():
+    bad = {"id": "b_blk", "target": "baro_alt", "type": "blocked", "unit": "m", "sigma_f": 0.02,
+           "amplitude_max": 50.0}
+    with pytest.raises(ConfigError, match="only the pitot can be blocked"):
+        parse_estimator(_doc_with(bad), "x.toml")
+    pitot = {"id": "pitot", "target": "airspeed", "unit": "m/s", "sigma_f": 0.1, "amplitude_max": 30.0}
+    assert parse_estimator(_doc_with(pitot), "x.toml").derived_rows == ("airspeed",)
+    doc = _doc_with(pitot)
+    doc["parts"]["process_model"] = "nonlinear"
+    doc["faults"] = [f for f in doc["faults"] if f["target"] != "delta_e"] + []
+    with pytest.raises(ConfigError, match="watch the pitot"):
+        parse_estimator(doc, "x.toml")
+    with pytest.raises(ConfigError, match="cannot fold"):
+        parse_estimator(_doc_with(dict(pitot, on_exit="reset_or_fold")), "x.toml")
+    with pytest.raises(ConfigError, match="no drift_sigma"):
+        parse_estimator(_doc_with(dict(pitot, drift_sigma=0.5)), "x.toml")
