@@ -148,7 +148,7 @@ def test_the_offset_window_measures_a_ramps_slope():
     assert abs(b[0] - 0.8) < 3 * se[0] and se[0] < 0.3
 
 
-def test_the_correction_moves_a_lagging_rate_towards_the_data():
+def test_the_correction_moves_a_lagging_rate_and_its_offset_towards_the_data():
     part = DriftJump(StillJump(), np.array([1]), DT, np.array([0.03]), 2)
     inner_calls = []
 
@@ -166,6 +166,8 @@ def test_the_correction_moves_a_lagging_rate_towards_the_data():
     alpha, beta = alpha_beta(np.array([0.03]), np.array([1.5]), DT)
     assert part.R[0, 0] == pytest.approx(beta[0] / DT * 2.0)
     assert 0 < beta[0] < alpha[0] < 1
+    # a mode-1 offset moves by its own alpha gain (whatever the cloud's correction did)
+    assert X[N_AIRFRAME + 1, 0] == pytest.approx(alpha[0] * 2.0) and X[N_AIRFRAME + 1, 1] == 0.0
 
 
 def test_the_user_reads_the_rate_while_the_estimate_stays_the_offset():
