@@ -15,10 +15,17 @@ rates are permuted with the particles), `pin` (mode-0 rates are 0) and a fresh c
 (`reinitialise`). Its answer to the user (`annotate`) is the rate, the mean over the mode-1
 particles; the fault estimate stays the offset.
 
-A new drift fault's rate: r = a / T, a its offset from the fault-free value at the jump (the
-predicted amplitude A, less the mode-0 drift under parts.mode0 = "drift"), T log-uniform on
-[T_MIN_S, T_MAX_S]: the ramp has been running for T seconds when the offset it built is seen.
-No importance term: like the amplitude of a thesis sentinel, the proposal is taken as the prior.
+A new drift fault's rate (a sentinel, or a hand-over from another type of the item): for a share
+WINDOW_SHARE of the particles, N(b, se^2) with b the least-squares slope of the row's offset
+y_r - h_r z_bar over the last few seconds and se its standard error (`OffsetSlope`); for the rest
+r = a / T, a the entry's offset from the fault-free value (the predicted amplitude A, less the
+mode-0 drift under parts.mode0 = "drift"), T log-uniform on [T_MIN_S, T_MAX_S]: the ramp has been
+running for T seconds when the offset it built is seen. No importance term: like the amplitude of
+a thesis sentinel, the proposal is taken as the prior.
+
+In mode 1 the offset and the rate are corrected by the constant-rate tracker's own gains
+(`DriftCorrection`, `alpha_beta`), not by the cloud's Kalman gain, so a particle's wrong rate
+shows in its likelihood instead of being hidden by its offset's correction.
 """
 
 from __future__ import annotations
