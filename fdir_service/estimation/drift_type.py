@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+from fdir_service.estimation.measurement import state_gain
 
 if TYPE_CHECKING:
     from fdir_service.estimation.base import StepOutput
@@ -99,6 +100,47 @@ class OffsetSlope:
         return b, se
 
 
+class DriftAnchor:
+    """A drift that ends re-anchors the state (as a stuck sensor's return does,
+    `fault_types.TypeSwitch.anchor`): half the particles whose drift entry leaves mode 1 with no
+    other type of its item taking over, and whose reading has come back (it no longer carries half
+    the drift's offset), move their airframe state so that the row predicts this frame's reading,
+    x += g_r d, g_r = h_r^T / |h_r|^2, d the row's innovation with the drift's offset taken out.
+    During a ramp the reading still carries the offset, and an exit does not move the state.
+    While the ramp ran, the state took part of it (the altitude the autopilot then flew); without
+    this, the returning barometer disagreed with that state and was declared again (most false
+    alarms after a barometer ramp).
+
+    rows (k,): the drift entries' rows; H (m, n): the measurement matrix; siblings (k, nf) bool:
+    the other entries of each drift entry's item.
+    """
+
+    def __init__(self, rows: np.ndarray, H: np.ndarray, siblings: np.ndarray) -> None:
+        self.rows = np.asarray(rows, dtype=int)
+        self.G = state_gain(np.asarray(H, dtype=float), self.rows)             # (5, k)
+        self.siblings = np.asarray(siblings, dtype=float)
+
+    def innovation(self, X: np.ndarray, frame: Frame) -> np.ndarray:
+        """(k, N) y_r - H_r x before the jump (0 where the row did not arrive)."""
+        present = frame.mask[self.rows]
+        e = np.zeros((self.rows.size, X.shape[1]))
+        if present.any():
+            ri = frame.row_of[self.rows[present]]
+            e[present] = frame.yv[ri, None] - frame.mm.H[ri] @ X
+        return e
+
+    def apply(self, X: np.ndarray, dist: np.ndarray, offset: np.ndarray, left: np.ndarray,
+              modes: np.ndarray, rng: np.random.Generator) -> None:
+        """X[:5] += G d (in place) for half the particles that left (k, N) with their item free and
+        whose reading has come back: |d| < |offset| / 2, offset (k, N) the drift they dropped."""
+        if not left.any():
+            return
+        taken = (self.siblings @ modes) > 0                                   # (k, N)
+        back = np.abs(dist) < 0.5 * np.abs(offset)
+        go = left & ~taken & back & (rng.random(left.shape) < 0.5)
+        X[:N_AIRFRAME] += self.G @ np.where(go, dist, 0.0)
+
+
 class DriftJump:
     """A jump part (`jump.MarkovJump`) plus the per-particle rates of the drift entries (module
     docstring). Every attribute it does not define is the inner jump's (`sentinels`,
@@ -109,8 +151,9 @@ class DriftJump:
     """
 
     def __init__(self, inner, faults: np.ndarray, dt: float, rate_sigma: np.ndarray, N: int,
-                 window: OffsetSlope | None = None) -> None:
+                 window: OffsetSlope | None = None, anchor: DriftAnchor | None = None) -> None:
         self.inner = inner
+        self.anchor = anchor
         self.window = window
         """None: a new rate is offset / T (module docstring); else N(slope, se^2) of the window."""
         self.faults = np.asarray(faults, dtype=int)
@@ -136,8 +179,14 @@ class DriftJump:
             self.window.observe(X, w, frame)
         X[js] += self.R * self.dt
         self.R += self.walk * rng.standard_normal(self.R.shape) * on
+        if self.anchor is not None:
+            F0 = X[js]
+            e = self.anchor.innovation(X, frame)
         lw = self.inner.jump(X, modes, w, frame, rng)
         after = modes[self.faults]
+        if self.anchor is not None:
+            offset = F0 - X[js]
+            self.anchor.apply(X, e + offset, offset, on & ~after, modes, rng)
         new = after & ~on
         self.R *= after
         if new.any():

@@ -19,7 +19,13 @@ from fdir_service.airframe.params import AirframeParams, load_airframe
 from fdir_service.estimation.adaptive import AdaptiveTransition
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.correction import KalmanCorrection, Likelihood
-from fdir_service.estimation.drift_type import DriftCorrection, DriftJump, OffsetSlope, drift_entries
+from fdir_service.estimation.drift_type import (
+    DriftAnchor,
+    DriftCorrection,
+    DriftJump,
+    OffsetSlope,
+    drift_entries,
+)
 from fdir_service.estimation.fault_types import (
     NoisySentinels,
     TypedCorrection,
@@ -60,6 +66,8 @@ FAULT_THRESHOLD_SIGMAS = 3.0
 residual standard deviation (measurement sigma for a sensor fault)."""
 DRIFT_WINDOW_S = 3.0
 """A new drift fault's rate: from the slope of its row's offset over this window (s); 0: offset / T."""
+DRIFT_ANCHOR = True
+"""A drift that ends re-anchors half its particles' state on the reading (`drift_type.DriftAnchor`)."""
 INTEGRATOR = "expeuler"
 """Integrator of the nonlinear process model (see docs/estimation.md for the measurements)."""
 
@@ -292,7 +300,9 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         rows = layout.sensor_row[drift]
         window = OffsetSlope(rows, meas.H, int(round(DRIFT_WINDOW_S / estimator.dt_s))) \
             if DRIFT_WINDOW_S > 0 else None
-        parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window)
+        siblings = (layout.sensor_row[None, :] == rows[:, None]) & (np.arange(layout.nf) != drift[:, None])
+        anchor = DriftAnchor(rows, meas.H, siblings) if DRIFT_ANCHOR else None
+        parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window, anchor)
         parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])
     return parts
 

@@ -88,7 +88,7 @@ def test_a_drifting_attitude_is_declared_sooner_and_tracked_closer_with_a_drift_
     for d in drift:
         assert d["delay"] < 8.0
     # the ramp leaks into the altitude the attitude integrates: a barometer item is sometimes
-    # declared beside it, by either monitor (bias only: 2 of 6 flights, with drift: 1)
+    # declared beside it (bias only: 2 of 6 flights here): no more with the drift entries
     assert sum(len(d["others"]) for d in drift) <= sum(len(b["others"]) for b in bias)
     rate = np.median([d["rate"] for d in drift])
     print(f"median rate read over the flights {rate:.2f} deg/s")

@@ -10,6 +10,7 @@ import pytest
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.drift_type import (
+    DriftAnchor,
     DriftCorrection,
     DriftJump,
     OffsetSlope,
@@ -214,3 +215,22 @@ def test_without_drift_entries_the_same_seed_gives_the_same_bits_after_a_fresh_c
         filt._reinitialise(filt.x_mean)
         outs.append(filt.step(0.05, y, np.ones(m, dtype=bool), np.array([-0.03, 0.5])))
     np.testing.assert_array_equal(outs[0].x_mean, outs[1].x_mean)
+
+
+def test_a_drift_that_ends_re_anchors_half_its_particles_state_on_the_reading():
+    """Particles 0-3 leave the drift with their item free; particle 4 hands over to the bias."""
+    siblings = np.array([[True, False]])                 # the bias is the drift's sibling
+    anchor = DriftAnchor(np.array([0]), MEAS.H, siblings)
+    X = np.zeros((LAYOUT.n, 5))
+    X[0] = -500.0                                        # the state reads 500 m ...
+    y = (506.0, 0.0)                                     # ... the barometer 506 m, after a 20 m drift
+    dist = anchor.innovation(X, frame(y=y))
+    left = np.array([[True, True, True, True, True]])
+    modes = np.array([[False, False, False, False, True], [False] * 5])
+    anchor.apply(X, dist, np.full((1, 5), 20.0), left, modes, np.random.default_rng(4))
+    moved = X[0] != -500.0
+    assert 0 < moved[:4].sum() < 4 and not moved[4]     # about half; never after a hand-over
+    np.testing.assert_allclose(X[0, moved], -506.0)     # onto the reading
+    X[0] = -500.0                                        # a reading that still carries the drift:
+    anchor.apply(X, dist, np.full((1, 5), 8.0), left, modes, np.random.default_rng(4))
+    assert (X[0] == -500.0).all()                        # no anchor (|6| >= 8 / 2)
