@@ -58,10 +58,11 @@ ACTUATORS = ("delta_e", "delta_t")
 UNITS = {"m": 1.0, "m/s": 1.0, "rad": 1.0, "rad/s": 1.0, "deg": math.pi / 180.0,
          "deg/s": math.pi / 180.0, "1": 1.0}
 """A fault's display unit -> SI factor (value_SI = value_unit * factor)."""
-SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy", "blocked")
+SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy", "blocked", "drift")
 """What a sensor fault does to its row (docs/faults.md): adds an offset; holds a value whatever the
 state does (stuck); multiplies its noise by k >= 1 (noisy); a blocked pitot (airspeed only) holds
-its total pressure, so its reading follows the altitude, V^2 = V0^2 + 2 g (h - h0)."""
+its total pressure, so its reading follows the altitude, V^2 = V0^2 + 2 g (h - h0); an offset that
+ramps at a rate of its own (drift)."""
 ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness")
 """What an actuator fault does to its input (docs/faults.md): adds an offset; holds a position
 whatever the command (jammed); scales the command by a gain 0..1 (loss of effectiveness; an engine
@@ -98,6 +99,8 @@ class FaultSpec:
     `type`. Its entry in the extended state: bias the offset (SI); stuck and jammed the offset from
     the truth that holds the target still (the published value is the held reading/position);
     noisy k - 1 (k the noise multiplier); effectiveness g - 1 (g the remaining gain)."""
+    rate_sigma: float = 0.0
+    """A drift fault's rate random walk (SI per s per sqrt(s); `drift_type.DriftJump`)."""
     on_exit: str = "reset"
     """A sensor fault's 1 -> 0 exit: "reset" (the fault ended: its entry to 0) or "reset_or_fold"
     (half the exits fold the entry into the airframe state instead: the state was wrong, this
@@ -277,6 +280,7 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         pi10=t.take("pi10", "number", None, check=UNIT_INTERVAL),
         drift_sigma=t.take("drift_sigma", "number", 0.0, check=NON_NEGATIVE),
         on_exit=t.take("on_exit", "string", "reset", choices=EXIT_CHOICES),
+        rate_sigma=t.take("rate_sigma", "number", 0.0, check=NON_NEGATIVE),
         fault_type=t.take("type", "string", "bias",
                           choices=ACTUATOR_FAULT_TYPES if target in ACTUATORS else SENSOR_FAULT_TYPES),
     )

@@ -6,6 +6,7 @@ act on the target according to the channel's `fault_type` (`[[world.faults]] typ
 
 sensor rows (`SensorFaults`, used by `sensors.SensorSuite`):
 - bias     y_r += a (always; the only type before issue 17, same bits);
+- drift    y_r += a, as a bias (its profile a ramp), but typed: scored per item and type;
 - stuck    while active y_r = held + a (+ the row's usual noise, unless `noise = "none"`), held = the
            noise-free reading of the last fault-free frame (a = 0: stuck where it was);
 - noisy    while active the row's noise draw is multiplied by k = max(a, 1) (the same draw, so the
@@ -85,7 +86,7 @@ class SensorFaults:
     def __init__(self, faults: Sequence[FaultChannel], rows: Sequence[str]) -> None:
         self.nf = len(faults)
         self.typed = [(j, list(rows).index(ch.target), ch) for j, ch in enumerate(faults)
-                      if ch.kind == "sensor" and ch.fault_type != "bias"]
+                      if ch.kind == "sensor" and ch.fault_type not in ("bias", "drift")]
         self.noisy = [(j, r) for j, r, ch in self.typed if ch.fault_type == "noisy"]
         self.reset()
 

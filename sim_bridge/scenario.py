@@ -35,7 +35,7 @@ from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, TomlTable, load_toml
 from sim_bridge.world_config import RealSky, parse_real_sky
 
 PROFILE_SHAPES = ("step", "exponential", "ramp", "intermittent")
-WORLD_SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy", "blocked")
+WORLD_SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy", "blocked", "drift")
 """What a world sensor fault does to its row (`sim_bridge.fault_types`); "blocked" is the pitot's
 (airspeed row only)."""
 WORLD_ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness")

@@ -53,7 +53,7 @@ class SensorSuite:
         # Fault routing: y += S f, S (m, nf) with a 1 where bias sensor fault j targets row i.
         self.S = np.zeros((m, len(scenario.faults)))
         for j, ch in enumerate(scenario.faults):
-            if ch.kind == "sensor" and ch.fault_type == "bias":
+            if ch.kind == "sensor" and ch.fault_type in ("bias", "drift"):   # drift: a ramp, added
                 self.S[self.names.index(ch.target), j] = 1.0
         self.typed = SensorFaults(scenario.faults, self.names)
         self.baro_row = self.names.index("baro_alt") if "baro_alt" in self.names else None

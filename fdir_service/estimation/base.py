@@ -25,7 +25,8 @@ class StepOutput:
     fault_types (nf,): each fault's type (`estimator_config.SENSOR_FAULT_TYPES` /
     `ACTUATOR_FAULT_TYPES`; empty: all "bias"); fault_value (nf,) SI or None (= fault_estimate):
     what a user reads per type: a bias's offset, a stuck sensor's held reading, a jammed
-    actuator's held position, a noisy sensor's noise multiplier k, an effectiveness's gain g.
+    actuator's held position, a noisy sensor's noise multiplier k, an effectiveness's gain g, a
+    drift's rate (SI per second).
     """
 
     t: float

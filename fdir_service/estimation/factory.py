@@ -19,6 +19,13 @@ from fdir_service.airframe.params import AirframeParams, load_airframe
 from fdir_service.estimation.adaptive import AdaptiveTransition
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.correction import KalmanCorrection, Likelihood
+from fdir_service.estimation.drift_type import (
+    DriftAnchor,
+    DriftCorrection,
+    DriftJump,
+    OffsetSlope,
+    drift_entries,
+)
 from fdir_service.estimation.fault_types import (
     NoisySentinels,
     TypedCorrection,
@@ -58,6 +65,10 @@ from fdir_service.estimator_config import EstimatorConfig
 FAULT_THRESHOLD_SIGMAS = 3.0
 """Mode-free filters (KF, RPF, RRPF, bootstrap) report P(|f_j| > 3 sigma_j), sigma_j the fault's
 residual standard deviation (measurement sigma for a sensor fault)."""
+DRIFT_WINDOW_S = 3.0
+"""A new drift fault's rate: from the slope of its row's offset over this window (s); 0: offset / T."""
+DRIFT_ANCHOR = True
+"""A drift that ends re-anchors half its particles' state on the reading (`drift_type.DriftAnchor`)."""
 INTEGRATOR = "expeuler"
 """Integrator of the nonlinear process model (see docs/estimation.md for the measurements)."""
 
@@ -265,10 +276,12 @@ def _predictor(rec: Recipe, estimator: EstimatorConfig, process, q_std: np.ndarr
     return GaussianPredict(process, q_std)
 
 
-def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel) -> Parts:
+def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
+           N: int) -> Parts:
     """The parts with the typed faults' wrappers (`fault_types`): the evolution after the predict,
     the noisy rows' likelihood around the correction, their prior draw after the sentinels, and
-    the jump's hand-overs between an item's types (one `TypedEvolution` shared by all)."""
+    the jump's hand-overs between an item's types (one `TypedEvolution` shared by all); the drift
+    entries' rates around the jump (`drift_type.DriftJump`, N particles)."""
     if not layout.typed:
         return parts
     evolution = TypedEvolution(layout, meas.H, wind_entry(estimator.faults))
@@ -284,6 +297,16 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         high = np.array([estimator.faults[j].amplitude_max or 9.0 for j in noisy.tolist()])
         parts.sentinel_weighting = NoisySentinels(parts.sentinel_weighting, noisy,
                                                   np.minimum(0.5, high), high)
+    drift = drift_entries(layout)
+    if drift.size:
+        sigma = np.array([estimator.faults[j].rate_sigma for j in drift.tolist()])
+        rows = layout.sensor_row[drift]
+        window = OffsetSlope(rows, meas.H, int(round(DRIFT_WINDOW_S / estimator.dt_s))) \
+            if DRIFT_WINDOW_S > 0 else None
+        siblings = (layout.sensor_row[None, :] == rows[:, None]) & (np.arange(layout.nf) != drift[:, None])
+        anchor = DriftAnchor(rows, meas.H, siblings) if DRIFT_ANCHOR else None
+        parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window, anchor)
+        parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])
     return parts
 
 
@@ -304,7 +327,7 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
         resampler=resampler("systematic" if every else est.resampler),
         regulariser=_regulariser(rec, estimator, amp, _bandwidth(estimator, layout.n, N)),
     )
-    return (_typed(parts, estimator, layout, meas) if rec.has_modes else parts), amp
+    return (_typed(parts, estimator, layout, meas, N) if rec.has_modes else parts), amp
 
 
 def build_particle_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator,

@@ -258,6 +258,9 @@ class NoJump:
     def resample_modes(self, modes: np.ndarray, idx: np.ndarray) -> np.ndarray:
         return modes
 
+    def reinitialise(self, modes: np.ndarray) -> None:
+        """A fresh cloud: nothing held per particle."""
+
     def fault_probability(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
         return (np.abs(X[N_AIRFRAME:]) > self.fault_threshold[:, None]) @ w
 
@@ -336,6 +339,9 @@ class MarkovJump:
 
     def resample_modes(self, modes: np.ndarray, idx: np.ndarray) -> np.ndarray:
         return np.take(modes, idx, axis=1)
+
+    def reinitialise(self, modes: np.ndarray) -> None:
+        """A fresh cloud: nothing held per particle (`drift_type.DriftJump` holds rates)."""
 
     def fault_probability(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
         """P(mode 1) per fault (nf,) (Alg. 4.3); with `given_fault` on, also keeps each fault

@@ -187,6 +187,7 @@ class ParticleFilter:
         self.reinitialisations += 1
         self.X = centre[:, None] + self.rng.standard_normal((self.n, self.N)) * self.reinit_std[:, None]
         self.modes = np.broadcast_to((self.fault_probability > 0.5)[:, None], (self.nf, self.N)).copy()
+        self.parts.jump.reinitialise(self.modes)
         self.parts.jump.pin(self.X, self.modes)
         self.w = np.full(self.N, 1.0 / self.N)
 

@@ -47,6 +47,10 @@ class JumpPart(Protocol):
 
     def resample_modes(self, modes: np.ndarray, idx: np.ndarray) -> np.ndarray: ...
 
+    def reinitialise(self, modes: np.ndarray) -> None:
+        """A fresh cloud with modes (nf, N): reset what the part holds per particle."""
+        ...
+
     def fault_probability(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
         """P(fault) (nf,)."""
         ...

@@ -31,6 +31,7 @@ TYPE_CODES: dict[str, int] = {
     "jammed": dialect.FDIR_FAULT_TYPE_JAMMED,
     "effectiveness": dialect.FDIR_FAULT_TYPE_EFFECTIVENESS,
     "blocked": dialect.FDIR_FAULT_TYPE_BLOCKED,
+    "drift": dialect.FDIR_FAULT_TYPE_DRIFT,
 }
 """Fault type name -> FDIR_FAULT_TYPE code (FDIR_ESTIMATE.fault_type, the recording's `ft_<id>`)."""
 TYPE_NAMES: dict[int, str] = {v: k for k, v in TYPE_CODES.items()}

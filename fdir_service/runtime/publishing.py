@@ -85,7 +85,7 @@ class Change(NamedTuple):
 def value_text(fault: FaultChannel, fault_type: str, value: float) -> str:
     """A fault's user-facing value in words: '+50.1 m' (bias, in the fault's unit), 'at 3.2 deg/s'
     (stuck or blocked reading, jammed position), 'x4.1' (noisy: noise multiplier k), '0%'
-    (effectiveness g)."""
+    (effectiveness g), '+0.30 m/s' (drift: its rate, the fault's unit per second)."""
     if fault_type == "noisy":
         return f"x{value:.1f}"
     if fault_type == "effectiveness":
@@ -94,6 +94,8 @@ def value_text(fault: FaultChannel, fault_type: str, value: float) -> str:
     unit = "" if fault.unit == "1" else f" {fault.unit}"
     if fault_type in ("stuck", "jammed", "blocked"):
         return f"at {val:.1f}{unit}"
+    if fault_type == "drift":                  # value: the rate, SI per second
+        return f"{val:+.2f}{unit or ' '}/s"
     return f"{val:+.1f}{unit}"
 
 

@@ -386,9 +386,11 @@ enums["FDIR_FAULT_TYPE"][3] = EnumEntry("FDIR_FAULT_TYPE_JAMMED", """An actuator
 FDIR_FAULT_TYPE_EFFECTIVENESS = 4
 enums["FDIR_FAULT_TYPE"][4] = EnumEntry("FDIR_FAULT_TYPE_EFFECTIVENESS", """An actuator's effect is scaled by a gain g in 0..1 (loss of effectiveness; g = 0: e.g. engine loss); value: g (unitless).""")
 FDIR_FAULT_TYPE_BLOCKED = 5
-enums["FDIR_FAULT_TYPE"][5] = EnumEntry("FDIR_FAULT_TYPE_BLOCKED", """Reserved (a blocked pitot or static port); not sent yet.""")
-FDIR_FAULT_TYPE_ENUM_END = 6
-enums["FDIR_FAULT_TYPE"][6] = EnumEntry("FDIR_FAULT_TYPE_ENUM_END", """""")
+enums["FDIR_FAULT_TYPE"][5] = EnumEntry("FDIR_FAULT_TYPE_BLOCKED", """A pitot blocked, ram and drain: its total pressure trapped, the reading follows the altitude (V^2 = V0^2 + 2 g (h - h0)); value: the reading it gives, m/s.""")
+FDIR_FAULT_TYPE_DRIFT = 6
+enums["FDIR_FAULT_TYPE"][6] = EnumEntry("FDIR_FAULT_TYPE_DRIFT", """A sensor's offset ramps at a rate of its own; value: the rate, SI units of the target per second.""")
+FDIR_FAULT_TYPE_ENUM_END = 7
+enums["FDIR_FAULT_TYPE"][7] = EnumEntry("FDIR_FAULT_TYPE_ENUM_END", """""")
 
 # HL_FAILURE_FLAG
 enums["HL_FAILURE_FLAG"] = Enum()

@@ -1,0 +1,289 @@
+"""The "drift" sensor fault type: a fault that ramps (issue 17, item 5; docs/faults.md).
+
+A drift entry is additive like a bias (its row reads h_r z + f), but in mode 1 it moves at its
+own rate r (SI per second), a per-particle quantity that random-walks slowly:
+
+    f+ = f + r dt,     r+ = r + rate_sigma sqrt(dt) eps,     eps ~ N(0, 1)
+
+so a ramp is followed without the lag of a bias entry, whose random walk (sigma_f) must be wide
+enough to chase it. The rates R (k, N) of the k drift entries are the state of one part,
+`DriftJump`, which wraps the filter's jump slot (factory._typed) because the jump slot already
+sees every event a rate must follow: the step's start (the ramp and the walk, applied before the
+jump so its amplitudes and sentinels see them), mode changes (a new drift fault proposes a
+rate, an exit or a hand-over to another type zeroes it), resampling (`resample_modes`: the
+rates are permuted with the particles), `pin` (mode-0 rates are 0) and a fresh cloud
+(`reinitialise`). Its answer to the user (`annotate`) is the rate, the mean over the mode-1
+particles; the fault estimate stays the offset.
+
+A new drift fault's rate (a sentinel, or a hand-over from another type of the item): for a share
+WINDOW_SHARE of the particles, N(b, se^2) with b the least-squares slope of the row's offset
+y_r - h_r z_bar over the last few seconds and se its standard error (`OffsetSlope`); for the rest
+r = a / T, a the entry's offset from the fault-free value (the predicted amplitude A, less the
+mode-0 drift under parts.mode0 = "drift"), T log-uniform on [T_MIN_S, T_MAX_S]: the ramp has been
+running for T seconds when the offset it built is seen. No importance term: like the amplitude of
+a thesis sentinel, the proposal is taken as the prior.
+
+In mode 1 the offset and the rate are corrected by the constant-rate tracker's own gains
+(`DriftCorrection`, `alpha_beta`), not by the cloud's Kalman gain, so a particle's wrong rate
+shows in its likelihood instead of being hidden by its offset's correction.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+from fdir_service.estimation.measurement import state_gain
+
+if TYPE_CHECKING:
+    from fdir_service.estimation.base import StepOutput
+    from fdir_service.estimation.frame import Frame
+
+T_MIN_S = 1.0
+"""Shortest age (s) a new drift fault's ramp is assumed to have when it is proposed."""
+T_MAX_S = 30.0
+"""Longest age (s): a ramp seen only after half a minute is slower than any walk tells apart."""
+OWN_GAIN = True
+"""A mode-1 drift entry is corrected by its own alpha gain, not the cloud's Kalman gain."""
+WINDOW_SHARE = 0.5
+"""With an `OffsetSlope` window: the share of new rates drawn around its slope (the rest offset / T)."""
+
+
+def drift_entries(layout: FaultLayout) -> np.ndarray:
+    """(k,) indices of the layout's drift entries."""
+    return np.array([j for j in range(layout.nf) if layout.type_of(j) == "drift"], dtype=int)
+
+
+class OffsetSlope:
+    """The slope (SI / s) of each drift row's offset a = y_r - h_r z_bar (z_bar the cloud's mean
+    airframe state) over the last `frames` frames, by least squares, and its standard error: the
+    rate a new drift fault is proposed around (`DriftJump`, proposal "slope").
+
+    rows (k,): the drift entries' measurement rows; H (m, n): the measurement matrix; frames: the
+    window length (frames).
+    """
+
+    def __init__(self, rows: np.ndarray, H: np.ndarray, frames: int) -> None:
+        self.rows = np.asarray(rows, dtype=int)
+        self.h = np.asarray(H, dtype=float)[self.rows, :N_AIRFRAME]            # (k, 5)
+        self.t = np.full(int(frames), np.nan)
+        self.a = np.full((self.rows.size, int(frames)), np.nan)
+        self.k = 0
+
+    def observe(self, X: np.ndarray, w: np.ndarray, frame: Frame) -> None:
+        """Store this frame's offsets (NaN where the row did not arrive); X (n, N), w (N,)."""
+        present = frame.mask[self.rows]
+        y = np.full(self.rows.size, np.nan)
+        y[present] = frame.yv[frame.row_of[self.rows[present]]]
+        i = self.k % self.t.size
+        self.t[i] = frame.t
+        self.a[:, i] = y - self.h @ (X[:N_AIRFRAME] @ w)
+        self.k += 1
+
+    def slope(self) -> tuple[np.ndarray, np.ndarray]:
+        """((k,) slopes, (k,) their standard errors); 0 and inf with fewer than 3 samples."""
+        ok = np.isfinite(self.a) & np.isfinite(self.t)
+        n = ok.sum(axis=1)
+        t = np.where(ok, self.t, 0.0)
+        a = np.where(ok, self.a, 0.0)
+        nn = np.maximum(n, 1)
+        dt = np.where(ok, t - (t.sum(axis=1) / nn)[:, None], 0.0)
+        da = np.where(ok, a - (a.sum(axis=1) / nn)[:, None], 0.0)
+        stt = (dt * dt).sum(axis=1)
+        good = (n >= 3) & (stt > 0)
+        b = np.divide((dt * da).sum(axis=1), stt, out=np.zeros(n.size), where=good)
+        res = np.where(ok, da - b[:, None] * dt, 0.0)
+        var = (res * res).sum(axis=1) / np.maximum(n - 2, 1)
+        se = np.sqrt(np.divide(var, stt, out=np.full(n.size, np.inf), where=good))
+        return b, se
+
+
+class DriftAnchor:
+    """A drift that ends re-anchors the state (as a stuck sensor's return does,
+    `fault_types.TypeSwitch.anchor`): half the particles whose drift entry leaves mode 1 with no
+    other type of its item taking over, and whose reading has come back (it no longer carries half
+    the drift's offset), move their airframe state so that the row predicts this frame's reading,
+    x += g_r d, g_r = h_r^T / |h_r|^2, d the row's innovation with the drift's offset taken out.
+    During a ramp the reading still carries the offset, and an exit does not move the state.
+    While the ramp ran, the state took part of it (the altitude the autopilot then flew); without
+    this, the returning barometer disagreed with that state and was declared again (most false
+    alarms after a barometer ramp).
+
+    rows (k,): the drift entries' rows; H (m, n): the measurement matrix; siblings (k, nf) bool:
+    the other entries of each drift entry's item.
+    """
+
+    def __init__(self, rows: np.ndarray, H: np.ndarray, siblings: np.ndarray) -> None:
+        self.rows = np.asarray(rows, dtype=int)
+        self.G = state_gain(np.asarray(H, dtype=float), self.rows)             # (5, k)
+        self.siblings = np.asarray(siblings, dtype=float)
+
+    def innovation(self, X: np.ndarray, frame: Frame) -> np.ndarray:
+        """(k, N) y_r - H_r x before the jump (0 where the row did not arrive)."""
+        present = frame.mask[self.rows]
+        e = np.zeros((self.rows.size, X.shape[1]))
+        if present.any():
+            ri = frame.row_of[self.rows[present]]
+            e[present] = frame.yv[ri, None] - frame.mm.H[ri] @ X
+        return e
+
+    def apply(self, X: np.ndarray, dist: np.ndarray, offset: np.ndarray, left: np.ndarray,
+              modes: np.ndarray, rng: np.random.Generator) -> None:
+        """X[:5] += G d (in place) for half the particles that left (k, N) with their item free and
+        whose reading has come back: |d| < |offset| / 2, offset (k, N) the drift they dropped."""
+        if not left.any():
+            return
+        taken = (self.siblings @ modes) > 0                                   # (k, N)
+        back = np.abs(dist) < 0.5 * np.abs(offset)
+        go = left & ~taken & back & (rng.random(left.shape) < 0.5)
+        X[:N_AIRFRAME] += self.G @ np.where(go, dist, 0.0)
+
+
+class DriftJump:
+    """A jump part (`jump.MarkovJump`) plus the per-particle rates of the drift entries (module
+    docstring). Every attribute it does not define is the inner jump's (`sentinels`,
+    `last_amplitude`, `transition`, ...).
+
+    inner: the jump; faults (k,): the drift entries; dt: the frame period (s); rate_sigma (k,):
+    the rates' random-walk std (SI / s per sqrt(s)); N: particles.
+    """
+
+    def __init__(self, inner, faults: np.ndarray, dt: float, rate_sigma: np.ndarray, N: int,
+                 window: OffsetSlope | None = None, anchor: DriftAnchor | None = None) -> None:
+        self.inner = inner
+        self.anchor = anchor
+        self.window = window
+        """None: a new rate is offset / T (module docstring); else N(slope, se^2) of the window."""
+        self.faults = np.asarray(faults, dtype=int)
+        self.dt = float(dt)
+        self.walk = np.asarray(rate_sigma, dtype=float)[:, None] * np.sqrt(self.dt)    # (k, 1)
+        self.R = np.zeros((self.faults.size, int(N)))
+        """(k, N) each drift entry's rate per particle (SI / s); 0 in mode 0."""
+        self.rate_if_faulty = np.zeros(self.faults.size)
+        """(k,) the weighted mean rate over each entry's mode-1 particles (0 where none is)."""
+
+    def __getattr__(self, name: str):
+        if name == "inner":                     # not set yet (copy, pickle): no recursion
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def jump(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray, frame: Frame,
+             rng: np.random.Generator) -> np.ndarray | None:
+        """Ramp the mode-1 drift entries of X (n, N) and walk their rates, then the inner jump
+        (in place); new drift faults get a proposed rate, exits and hand-overs lose theirs."""
+        js = N_AIRFRAME + self.faults
+        on = modes[self.faults]
+        if self.window is not None:
+            self.window.observe(X, w, frame)
+        X[js] += self.R * self.dt
+        self.R += self.walk * rng.standard_normal(self.R.shape) * on
+        if self.anchor is not None:
+            F0 = X[js]
+            e = self.anchor.innovation(X, frame)
+        lw = self.inner.jump(X, modes, w, frame, rng)
+        after = modes[self.faults]
+        if self.anchor is not None:
+            offset = F0 - X[js]
+            self.anchor.apply(X, e + offset, offset, on & ~after, modes, rng)
+        new = after & ~on
+        self.R *= after
+        if new.any():
+            self.R[new] = self._propose(X[js], new, rng)
+        return lw
+
+    def _propose(self, F: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """(c,) rates of the c new drift faults (new (k, N) bool): offset / T, T log-uniform."""
+        drift = getattr(self.inner, "drift", None)
+        centre = drift.value[self.faults] if drift is not None else np.zeros(self.faults.size)
+        offset = (F - centre[:, None])[new]
+        T = np.exp(rng.uniform(np.log(T_MIN_S), np.log(T_MAX_S), offset.size))
+        r = offset / T
+        if self.window is None:
+            return r
+        b, se = self.window.slope()
+        rows = np.nonzero(new)[0]
+        slope = b[rows] + np.minimum(se[rows], np.abs(b[rows]) + 1e-12) * rng.standard_normal(rows.size)
+        return np.where(rng.random(rows.size) < WINDOW_SHARE, slope, r)
+
+    def pin(self, X: np.ndarray, modes: np.ndarray) -> None:
+        """The inner pin; mode-0 rates to 0 (in place)."""
+        self.inner.pin(X, modes)
+        self.R *= modes[self.faults]
+
+    def reinitialise(self, modes: np.ndarray) -> None:
+        """A fresh cloud (modes (nf, N)): each mode-1 particle takes the last mean rate."""
+        self.inner.reinitialise(modes)
+        self.R = self.rate_if_faulty[:, None] * modes[self.faults]
+
+    def resample_modes(self, modes: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """The inner's resampled modes; the rates follow their particles (idx (N,))."""
+        self.R = np.take(self.R, idx, axis=1)
+        return self.inner.resample_modes(modes, idx)
+
+    def fault_probability(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The inner's P(mode 1) (nf,); keeps each drift entry's mean rate over its mode-1 particles."""
+        p = self.inner.fault_probability(X, modes, w)
+        wm = modes[self.faults] * w                                     # (k, N)
+        s = wm.sum(axis=1)
+        self.rate_if_faulty = np.divide((wm * self.R).sum(axis=1), s, out=np.zeros_like(s),
+                                        where=s > 1e-12)
+        return p
+
+    def annotate(self, out: StepOutput) -> None:
+        """The inner's annotations; a drift entry's fault_value is its rate (SI / s)."""
+        self.inner.annotate(out)
+        value = out.fault_value if out.fault_value is not None else out.fault_estimate.copy()
+        value[self.faults] = self.rate_if_faulty
+        out.fault_value = value
+
+
+def alpha_beta(rate_sigma: np.ndarray, row_sigma: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Steady-state gains (alpha, beta) (k,) of the constant-rate tracker f+ = f + r dt, r+ = r + w,
+    w ~ N(0, rate_sigma^2 dt), observed as y = f + v, v ~ N(0, row_sigma^2) (Kalata's tracking
+    index lam = sigma_a dt^2 / row_sigma with sigma_a = rate_sigma / sqrt(dt) the per-step rate
+    change over dt): f += alpha e, r += beta e / dt for an innovation e."""
+    lam = np.asarray(rate_sigma, dtype=float) * dt ** 1.5 / np.asarray(row_sigma, dtype=float)
+    root = np.sqrt(lam * lam + 8.0 * lam)
+    alpha = -(lam * lam + 8.0 * lam - (lam + 4.0) * root) / 8.0
+    beta = (lam * lam + 4.0 * lam - lam * root) / 4.0
+    return alpha, beta
+
+
+class DriftCorrection:
+    """A correction part that corrects the drift rates as well as their offsets: the inner
+    correction moves each particle's offset f (the cloud's Kalman gain, eq. 5.3-5.9); each mode-1
+    particle's rate moves by beta e / dt, e = y_r - h_r x its innovation on the entry's row before
+    the correction, beta the steady-state gain of the constant-rate tracker (`alpha_beta`). A
+    particle whose offsets keep lagging the data learns a faster rate; without this the rates
+    were only selected by the weights, which the offsets' own correction leaves nearly blind
+    (0.1 deg/s learnt of a 0.5 deg/s attitude ramp after 5 s).
+
+    inner: the correction; rates: the `DriftJump` whose R (k, N) it moves; rows (k,): each drift
+    entry's measurement row; row_sigma (k,): their noise (SI).
+    """
+
+    def __init__(self, inner, rates: DriftJump, rows: np.ndarray, row_sigma: np.ndarray) -> None:
+        self.inner = inner
+        self.rates = rates
+        self.rows = np.asarray(rows, dtype=int)
+        self.entries = N_AIRFRAME + rates.faults
+        alpha, beta = alpha_beta(rates.walk[:, 0] / np.sqrt(rates.dt), row_sigma, rates.dt)
+        self.alpha = alpha if OWN_GAIN else None
+        self.gain = beta / rates.dt                                      # (k,) 1/s
+
+    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
+        present = frame.mask[self.rows]
+        if not present.any():
+            return self.inner.update(X, w, modes, frame)
+        ri = frame.row_of[self.rows[present]]
+        e = frame.yv[ri, None] - frame.mm.H[ri] @ X                      # (k', N)
+        on = modes[self.rates.faults[present]]
+        self.rates.R[present] += self.gain[present, None] * e * on
+        F0 = X[self.entries[present]]
+        ll = self.inner.update(X, w, modes, frame)
+        if self.alpha is not None:
+            js = self.entries[present]
+            X[js] = np.where(on, F0 + self.alpha[present, None] * e, X[js])
+        return ll

@@ -1,0 +1,236 @@
+"""The drift fault type on its own (fdir_service/estimation/drift_type.py): a mode-1 drift entry
+ramps at its particle's rate, the rates follow their particles through resampling, exits and a
+fresh cloud, a new drift fault gets a rate from its offset, the user reads the rate, and an
+estimator without drift entries is built exactly as before."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fdir_service.estimation.base import StepOutput
+from fdir_service.estimation.drift_type import (
+    DriftAnchor,
+    DriftCorrection,
+    DriftJump,
+    OffsetSlope,
+    alpha_beta,
+)
+from fdir_service.estimation.factory import build_filter
+from fdir_service.estimation.frame import Frame
+from fdir_service.estimation.jump import MarkovJump
+from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+from fdir_service.estimation.measurement import MeasurementModel
+from fdir_service.estimator_config import estimator_document, load_estimator, parse_estimator
+from fdir_service.runtime.items import TYPE_NAMES, type_code
+from fdir_service.runtime.publishing import statustext_for
+
+DT = 0.05
+ROWS = ("baro_alt", "theta")
+LAYOUT = FaultLayout(("baro", "baro_dr"), ("sensor", "sensor"), ("baro_alt", "baro_alt"), ROWS,
+                     ("bias", "drift"))
+MEAS = MeasurementModel.build(LAYOUT, np.array([1.5, 0.015]))
+
+
+class StillJump:
+    """A jump that changes no mode (what DriftJump wraps, reduced to its interface)."""
+
+    sentinels = np.zeros((2, 0), dtype=bool)
+
+    def jump(self, X, modes, w, frame, rng):
+        return None
+
+    def pin(self, X, modes):
+        pass
+
+    def reinitialise(self, modes):
+        pass
+
+    def resample_modes(self, modes, idx):
+        return np.take(modes, idx, axis=1)
+
+    def fault_probability(self, X, modes, w):
+        return modes @ w
+
+    def annotate(self, out):
+        pass
+
+
+def frame(t: float = 1.0, y=(500.0, 0.05)) -> Frame:
+    return Frame.of(t, np.array(y), np.ones(2, dtype=bool), np.zeros(2), MEAS)
+
+
+def drift_estimator(**fault):
+    """aerosonde-robust plus a barometer drift entry (its keys overridden by `fault`)."""
+    doc, _ = estimator_document("aerosonde-robust")
+    entry = {"id": "baro_dr", "target": "baro_alt", "type": "drift", "unit": "m", "sigma_f": 0.02,
+             "rate_sigma": 0.03, "amplitude_max": 500.0} | fault
+    doc["faults"] = list(doc["faults"]) + [entry]
+    return parse_estimator(doc, "drift.toml")
+
+
+def test_a_mode_1_drift_entry_ramps_at_its_rate_and_a_mode_0_one_stays():
+    part = DriftJump(StillJump(), np.array([1]), DT, np.zeros(1), 3)
+    part.R[0] = [0.5, -0.2, 0.0]                         # m/s; particle 2 is in mode 0
+    modes = np.array([[False] * 3, [True, True, False]])
+    X = np.zeros((LAYOUT.n, 3))
+    for _ in range(40):                                  # 2 s
+        part.jump(X, modes, np.full(3, 1 / 3), frame(), np.random.default_rng(0))
+    np.testing.assert_allclose(X[N_AIRFRAME + 1], [1.0, -0.4, 0.0], atol=1e-12)
+    assert not X[N_AIRFRAME].any()                       # the bias entry is no ramp
+
+
+def test_the_rate_walks_with_rate_sigma_in_mode_1_only():
+    part = DriftJump(StillJump(), np.array([1]), DT, np.array([0.1]), 20000)
+    modes = np.zeros((2, 20000), dtype=bool)
+    modes[1, :10000] = True
+    X = np.zeros((LAYOUT.n, 20000))
+    part.jump(X, modes, np.full(20000, 1 / 20000), frame(), np.random.default_rng(1))
+    assert part.R[0, :10000].std() == pytest.approx(0.1 * np.sqrt(DT), rel=0.05)
+    assert not part.R[0, 10000:].any()
+
+
+def test_the_rates_follow_their_particles_when_resampled_and_vanish_on_exit():
+    part = DriftJump(StillJump(), np.array([1]), DT, np.zeros(1), 4)
+    part.R[0] = [0.1, 0.2, 0.3, 0.4]
+    modes = np.ones((2, 4), dtype=bool)
+    out = part.resample_modes(modes, np.array([3, 3, 0, 2]))
+    np.testing.assert_array_equal(part.R[0], [0.4, 0.4, 0.1, 0.3])
+    out[1, 1] = False                                    # particle 1 left mode 1
+    part.pin(np.zeros((LAYOUT.n, 4)), out)
+    np.testing.assert_array_equal(part.R[0], [0.4, 0.0, 0.1, 0.3])
+
+
+def test_the_filter_resamples_the_rates_with_the_cloud():
+    filt = build_filter("RJMRPF", drift_estimator(), np.random.default_rng(0), particles=50)
+    jump = filt.parts.jump
+    assert isinstance(jump, DriftJump) and isinstance(filt.parts.correction, DriftCorrection)
+    j = jump.faults[0]
+    filt.modes[j] = True
+    jump.R[0] = np.arange(50.0)
+    w = np.zeros(50)
+    w[7] = 1.0
+    filt._resample(w)                                    # every particle is a copy of particle 7
+    np.testing.assert_array_equal(jump.R[0], np.full(50, 7.0))
+
+
+def test_a_fresh_cloud_gives_its_mode_1_particles_the_last_mean_rate():
+    part = DriftJump(StillJump(), np.array([1]), DT, np.zeros(1), 4)
+    part.R[0] = [0.2, 0.4, 0.0, 0.0]
+    modes = np.array([[False] * 4, [True, True, False, False]])
+    part.fault_probability(np.zeros((LAYOUT.n, 4)), modes, np.array([0.25, 0.75, 0.0, 0.0]))
+    assert part.rate_if_faulty[0] == pytest.approx(0.35)
+    part.reinitialise(np.ones((2, 4), dtype=bool))
+    np.testing.assert_allclose(part.R[0], 0.35)
+
+
+def test_a_new_drift_fault_takes_a_rate_from_its_offset():
+    """Proposal offset / T, T log-uniform on [1, 30] s (no window): same sign, |r| <= |offset|."""
+    class Enter(StillJump):
+        def jump(self, X, modes, w, frame, rng):
+            modes[1] = True
+            X[N_AIRFRAME + 1] = 6.0                         # the jump's amplitude A
+    part = DriftJump(Enter(), np.array([1]), DT, np.zeros(1), 5000)
+    X = np.zeros((LAYOUT.n, 5000))
+    part.jump(X, np.zeros((2, 5000), dtype=bool), np.full(5000, 2e-4), frame(), np.random.default_rng(2))
+    r = part.R[0]
+    assert (r > 6.0 / 30 - 1e-9).all() and (r < 6.0 + 1e-9).all()
+    assert np.median(r) == pytest.approx(6.0 / np.sqrt(30.0), rel=0.1)
+
+
+def test_the_offset_window_measures_a_ramps_slope():
+    win = OffsetSlope(np.array([0]), MEAS.H, 60)
+    X = np.zeros((LAYOUT.n, 1))
+    X[0] = -500.0                                        # p_d: 500 m up
+    noise = np.random.default_rng(3).normal(0.0, 1.0, 60)
+    for k in range(60):
+        win.observe(X, np.ones(1), frame(k * DT, (500.0 + 0.8 * k * DT + noise[k], 0.0)))
+    b, se = win.slope()
+    assert abs(b[0] - 0.8) < 3 * se[0] and se[0] < 0.3
+
+
+def test_the_correction_moves_a_lagging_rate_and_its_offset_towards_the_data():
+    part = DriftJump(StillJump(), np.array([1]), DT, np.array([0.03]), 2)
+    inner_calls = []
+
+    class Inner:
+        def update(self, X, w, modes, frame):
+            inner_calls.append(1)
+            return np.zeros(2)
+
+    corr = DriftCorrection(Inner(), part, np.array([0]), np.array([1.5]))
+    X = np.zeros((LAYOUT.n, 2))
+    X[0] = -500.0
+    modes = np.array([[False, False], [True, False]])
+    corr.update(X, np.full(2, 0.5), modes, frame(y=(502.0, 0.0)))  # the reading 2 m above
+    assert part.R[0, 0] > 0.0 and part.R[0, 1] == 0.0 and inner_calls
+    alpha, beta = alpha_beta(np.array([0.03]), np.array([1.5]), DT)
+    assert part.R[0, 0] == pytest.approx(beta[0] / DT * 2.0)
+    assert 0 < beta[0] < alpha[0] < 1
+    # a mode-1 offset moves by its own alpha gain (whatever the cloud's correction did)
+    assert X[N_AIRFRAME + 1, 0] == pytest.approx(alpha[0] * 2.0) and X[N_AIRFRAME + 1, 1] == 0.0
+
+
+def test_the_user_reads_the_rate_while_the_estimate_stays_the_offset():
+    part = DriftJump(StillJump(), np.array([1]), DT, np.zeros(1), 2)
+    part.R[0] = [0.3, 0.0]
+    modes = np.array([[False, False], [True, False]])
+    part.fault_probability(np.zeros((LAYOUT.n, 2)), modes, np.array([0.9, 0.1]))
+    x = np.zeros(LAYOUT.n)
+    x[N_AIRFRAME:] = [0.0, 4.0]
+    out = StepOutput(1.0, x, None, LAYOUT.fault_ids, x[N_AIRFRAME:].copy(), np.array([0.0, 0.9]), 2.0, False)
+    part.annotate(out)
+    assert out.fault_value[1] == pytest.approx(0.3) and out.fault_estimate[1] == 4.0
+    est = drift_estimator()
+    text = statustext_for(est.faults[-1], 0.3, 0.95, True, "drift", "baro")
+    assert text == "FDIR baro drift +0.30 m/s p=0.95"
+    assert TYPE_NAMES[type_code("drift")] == "drift"
+
+
+def test_a_drift_estimator_runs_and_reports_its_type():
+    est = drift_estimator()
+    assert est.faults[-1].fault_type == "drift" and est.faults[-1].rate_sigma == 0.03
+    filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=200)
+    m = len(est.measurements)
+    y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0])[:m]
+    out = filt.step(0.05, y, np.ones(m, dtype=bool), np.array([-0.03, 0.5]))
+    assert out.fault_types[-1] == "drift" and np.isfinite(out.fault_value).all()
+
+
+@pytest.mark.parametrize("name", ["aerosonde-robust", "aerosonde-catalogue"])
+def test_an_estimator_without_drift_entries_has_no_drift_parts(name):
+    filt = build_filter("RJMRPF", load_estimator(name), np.random.default_rng(0), particles=50)
+    assert isinstance(filt.parts.jump, MarkovJump)
+    assert not isinstance(filt.parts.correction, DriftCorrection)
+
+
+def test_without_drift_entries_the_same_seed_gives_the_same_bits_after_a_fresh_cloud():
+    """The new `reinitialise` hook draws nothing: two filters stay bit-identical through one."""
+    est = load_estimator("aerosonde-robust")
+    outs = []
+    for _ in range(2):
+        filt = build_filter("RJMRPF", est, np.random.default_rng(5), particles=100)
+        m = len(est.measurements)
+        y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0])[:m]
+        filt._reinitialise(filt.x_mean)
+        outs.append(filt.step(0.05, y, np.ones(m, dtype=bool), np.array([-0.03, 0.5])))
+    np.testing.assert_array_equal(outs[0].x_mean, outs[1].x_mean)
+
+
+def test_a_drift_that_ends_re_anchors_half_its_particles_state_on_the_reading():
+    """Particles 0-3 leave the drift with their item free; particle 4 hands over to the bias."""
+    siblings = np.array([[True, False]])                 # the bias is the drift's sibling
+    anchor = DriftAnchor(np.array([0]), MEAS.H, siblings)
+    X = np.zeros((LAYOUT.n, 5))
+    X[0] = -500.0                                        # the state reads 500 m ...
+    y = (506.0, 0.0)                                     # ... the barometer 506 m, after a 20 m drift
+    dist = anchor.innovation(X, frame(y=y))
+    left = np.array([[True, True, True, True, True]])
+    modes = np.array([[False, False, False, False, True], [False] * 5])
+    anchor.apply(X, dist, np.full((1, 5), 20.0), left, modes, np.random.default_rng(4))
+    moved = X[0] != -500.0
+    assert 0 < moved[:4].sum() < 4 and not moved[4]     # about half; never after a hand-over
+    np.testing.assert_allclose(X[0, moved], -506.0)     # onto the reading
+    X[0] = -500.0                                        # a reading that still carries the drift:
+    anchor.apply(X, dist, np.full((1, 5), 8.0), left, modes, np.random.default_rng(4))
+    assert (X[0] == -500.0).all()                        # no anchor (|6| >= 8 / 2)
