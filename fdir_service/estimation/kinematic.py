@@ -68,6 +68,8 @@ class KinematicProcess:
     """
 
     kind = "kinematic"
+    pitot = None
+    """The pitot's `pitot.PitotRow` (`use_wind`): the moment's airspeed per particle; None: the reading."""
 
     def __init__(self, dt: float, layout: FaultLayout, moment: PitchMoment | None = None,
                  v_ref: float = 40.0) -> None:
@@ -86,8 +88,6 @@ class KinematicProcess:
         it has started: a particle that holds the pitot faulty then predicts the pitching moment of
         the airspeed it believes, not of the reading."""
         self.pitot = pitot
-
-    pitot = None
 
     def _airspeed(self, X: np.ndarray, V: float):
         """The pitching moment's airspeed (m/s): the trusted reading V, or per particle u + W."""
