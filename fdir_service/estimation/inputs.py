@@ -43,7 +43,7 @@ class RowSplit:
 
     def __init__(self, observed: np.ndarray, imu: np.ndarray, imu_as_input: bool,
                  hold: np.ndarray | None = None, thrust: ThrustCheck | None = None,
-                 pitot: PitotRow | None = None) -> None:
+                 pitot: PitotRow | None = None, attitude: tuple[int, int] = (-1, -1)) -> None:
         self.observed = np.asarray(observed, dtype=int)
         self.imu = np.asarray(imu, dtype=int)
         self.imu_as_input = bool(imu_as_input)
@@ -54,6 +54,9 @@ class RowSplit:
         self.pitot = pitot
         """A `pitot.PitotRow` when the airspeed is also an observed row (`AIRSPEED_ROW`): the pitching
         moment and the thrust check then take it less its estimated fault."""
+        self.attitude = attitude
+        """The attitude and pitch-rate rows among the estimator's rows (-1: none): the pitot is read
+        near level flight only (`pitot.PitotRow.readable`)."""
 
     @classmethod
     def of(cls, estimator: EstimatorConfig, imu_as_input: bool, z_trim: np.ndarray) -> RowSplit:
@@ -65,7 +68,8 @@ class RowSplit:
         derived = estimator.derived_rows
         thrust = ThrustCheck(estimator.airframe_params()) if THRUST_ROW in derived else None
         return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]),
-                   thrust, _pitot(estimator) if AIRSPEED_ROW in derived else None)
+                   thrust, _pitot(estimator) if AIRSPEED_ROW in derived else None,
+                   tuple(rows.index(r) if r in rows else -1 for r in ("theta", "q")))
 
     def split(self, y: np.ndarray, mask: np.ndarray, u: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -86,8 +90,9 @@ class RowSplit:
             y_obs = np.append(y_obs, self.thrust.implied_throttle(ax, az, V, u[0]) - u[1])
             mask_obs = np.append(mask_obs, bool(fresh[0]))
         if self.pitot is not None:              # the derived airspeed row: the pitot's own reading
+            theta, q = (float(y[j]) if j >= 0 and mask[j] else None for j in self.attitude)
             y_obs = np.append(y_obs, self.hold[2])
-            mask_obs = np.append(mask_obs, bool(fresh[2]))
+            mask_obs = np.append(mask_obs, bool(fresh[2]) and self.pitot.readable(theta, q))
         if self.imu_as_input:
             u = np.concatenate([u, held])
         return y_obs, mask_obs, u

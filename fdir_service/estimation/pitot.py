@@ -29,6 +29,17 @@ import numpy as np
 from fdir_service.estimation.layout import N_AIRFRAME
 
 
+PITOT_MAX_PITCH_RAD = math.radians(25.0)
+PITOT_MAX_RATE_RADPS = math.radians(15.0)
+"""Beyond this pitch attitude (rad) or pitch rate (rad/s) the pitot is not read: V ~ u + W holds near
+level flight, and in an upset the head wind's share along body x (W_N cos theta) and the vertical
+velocity's share of V change faster than any gust, so the row would blame the pitot for the attitude."""
+
+
+def _within(value: float | None, limit: float) -> bool:
+    return value is None or not math.isfinite(value) or abs(value) <= limit
+
+
 def wind_entry(faults) -> int:
     """The fault entry carrying the wind: the first bias entry on the airspeed row (faults (nf,)
     `FaultSpec`s); -1 when there is none."""
@@ -61,6 +72,11 @@ class PitotRow:
         """m/s: the mean wind M the gusts return to (None before the first pitot reading)."""
         self.error = 0.0
         """m/s: the pitot's estimated fault after the last step (`follow`)."""
+
+    def readable(self, theta: float | None, q: float | None) -> bool:
+        """True when the pitot row may be read at the attitude theta (rad) and pitch rate q (rad/s)
+        (None or not finite: not measured, no limit)."""
+        return _within(theta, PITOT_MAX_PITCH_RAD) and _within(q, PITOT_MAX_RATE_RADPS)
 
     def trusted(self, airspeed: float) -> float:
         """The airspeed (m/s) the models take: the reading less the estimated fault."""

@@ -185,3 +185,18 @@ def test_only_the_pitot_can_be_blocked_and_only_the_kinematic_model_watches_it()
         parse_estimator(_doc_with(dict(pitot, on_exit="reset_or_fold")), "x.toml")
     with pytest.raises(ConfigError, match="no drift_sigma"):
         parse_estimator(_doc_with(dict(pitot, drift_sigma=0.5)), "x.toml")
+
+
+def test_the_pitot_is_read_near_level_flight_only():
+    part = pitot_part()
+    assert part.readable(0.1, 0.05) and part.readable(None, None) and part.readable(float("nan"), 0.0)
+    assert not part.readable(np.radians(30.0), 0.0)          # an upset's attitude
+    assert not part.readable(0.0, np.radians(20.0))          # an upset's pitch rate
+    est = load_estimator("aerosonde-catalogue")
+    filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=50)
+    rows = est.measurements
+    y = np.array([500.0, 500.0, 32.0, 1.5, 0.05, 0.0, 0.49, -9.78, 40.0])
+    mask = np.ones(len(rows), dtype=bool)
+    assert filt.rows.split(y, mask, np.array([-0.02, 0.5]))[1][-1]
+    y[rows.index("theta")] = np.radians(40.0)
+    assert not filt.rows.split(y, mask, np.array([-0.02, 0.5]))[1][-1]   # the row is masked
