@@ -28,7 +28,6 @@ import numpy as np
 
 from fdir_service.estimation.layout import N_AIRFRAME
 
-
 PITOT_MAX_PITCH_RAD = math.radians(25.0)
 PITOT_MAX_RATE_RADPS = math.radians(15.0)
 """Beyond this pitch attitude (rad) or pitch rate (rad/s) the pitot is not read: V ~ u + W holds near
