@@ -152,3 +152,14 @@ def test_fault_types_pack_two_per_byte_and_unpack_from_short_or_missing_fields()
     assert unpack_fault_types(pack_fault_types(codes)) == codes
     assert unpack_fault_types([0x21]) == [1, 2, 0, 0, 0, 0, 0, 0]
     assert unpack_fault_types(None) == [0] * 8
+
+
+def test_a_blocked_pitot_is_said_with_its_reading_and_every_type_has_its_own_code():
+    from fdir_service.runtime.items import TYPE_CODES, TYPE_NAMES
+
+    pitot = spec("pitot", "airspeed", "m/s", "blocked")
+    assert statustext_for(pitot, 47.04, 0.97, True, "blocked") == "FDIR pitot blocked at 47.0 m/s p=0.97"
+    assert TYPE_CODES["blocked"] == dialect.FDIR_FAULT_TYPE_BLOCKED == 5
+    assert TYPE_CODES["drift"] == dialect.FDIR_FAULT_TYPE_DRIFT == 6
+    assert len(set(TYPE_CODES.values())) == len(TYPE_CODES) and TYPE_NAMES[6] == "drift"
+    assert unpack_fault_types(pack_fault_types([5, 6, 0]))[:3] == [5, 6, 0]
