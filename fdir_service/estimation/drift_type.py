@@ -45,8 +45,6 @@ T_MIN_S = 1.0
 """Shortest age (s) a new drift fault's ramp is assumed to have when it is proposed."""
 T_MAX_S = 30.0
 """Longest age (s): a ramp seen only after half a minute is slower than any walk tells apart."""
-OWN_GAIN = True
-"""A mode-1 drift entry is corrected by its own alpha gain, not the cloud's Kalman gain."""
 WINDOW_SHARE = 0.5
 """With an `OffsetSlope` window: the share of new rates drawn around its slope (the rest offset / T)."""
 
@@ -270,7 +268,7 @@ class DriftCorrection:
         self.rows = np.asarray(rows, dtype=int)
         self.entries = N_AIRFRAME + rates.faults
         alpha, beta = alpha_beta(rates.walk[:, 0] / np.sqrt(rates.dt), row_sigma, rates.dt)
-        self.alpha = alpha if OWN_GAIN else None
+        self.alpha = alpha
         self.gain = beta / rates.dt                                      # (k,) 1/s
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
@@ -283,7 +281,6 @@ class DriftCorrection:
         self.rates.R[present] += self.gain[present, None] * e * on
         F0 = X[self.entries[present]]
         ll = self.inner.update(X, w, modes, frame)
-        if self.alpha is not None:
-            js = self.entries[present]
-            X[js] = np.where(on, F0 + self.alpha[present, None] * e, X[js])
+        js = self.entries[present]
+        X[js] = np.where(on, F0 + self.alpha[present, None] * e, X[js])
         return ll

@@ -66,9 +66,7 @@ FAULT_THRESHOLD_SIGMAS = 3.0
 """Mode-free filters (KF, RPF, RRPF, bootstrap) report P(|f_j| > 3 sigma_j), sigma_j the fault's
 residual standard deviation (measurement sigma for a sensor fault)."""
 DRIFT_WINDOW_S = 3.0
-"""A new drift fault's rate: from the slope of its row's offset over this window (s); 0: offset / T."""
-DRIFT_ANCHOR = True
-"""A drift that ends re-anchors half its particles' state on the reading (`drift_type.DriftAnchor`)."""
+"""A new drift fault's rate: half from the slope of its row's offset over this window (s)."""
 INTEGRATOR = "expeuler"
 """Integrator of the nonlinear process model (see docs/estimation.md for the measurements)."""
 
@@ -297,16 +295,22 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         high = np.array([estimator.faults[j].amplitude_max or 9.0 for j in noisy.tolist()])
         parts.sentinel_weighting = NoisySentinels(parts.sentinel_weighting, noisy,
                                                   np.minimum(0.5, high), high)
+    return _drift(parts, estimator, layout, meas, N)
+
+
+def _drift(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
+           N: int) -> Parts:
+    """The drift entries' rates around the jump and their own correction (`drift_type`), if any."""
     drift = drift_entries(layout)
-    if drift.size:
-        sigma = np.array([estimator.faults[j].rate_sigma for j in drift.tolist()])
-        rows = layout.sensor_row[drift]
-        window = OffsetSlope(rows, meas.H, int(round(DRIFT_WINDOW_S / estimator.dt_s))) \
-            if DRIFT_WINDOW_S > 0 else None
-        siblings = (layout.sensor_row[None, :] == rows[:, None]) & (np.arange(layout.nf) != drift[:, None])
-        anchor = DriftAnchor(rows, meas.H, siblings) if DRIFT_ANCHOR else None
-        parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window, anchor)
-        parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])
+    if not drift.size:
+        return parts
+    sigma = np.array([estimator.faults[j].rate_sigma for j in drift.tolist()])
+    rows = layout.sensor_row[drift]
+    window = OffsetSlope(rows, meas.H, int(round(DRIFT_WINDOW_S / estimator.dt_s)))
+    siblings = (layout.sensor_row[None, :] == rows[:, None]) & (np.arange(layout.nf) != drift[:, None])
+    parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window,
+                           DriftAnchor(rows, meas.H, siblings))
+    parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])
     return parts
 
 

@@ -59,8 +59,7 @@ class TypedEvolution:
         self.stuck_rows = layout.sensor_row[self.stuck]
         self.wind = int(wind)
         self.wind_row = int(layout.sensor_row[wind]) if wind >= 0 else -1
-        self.stuck_h = np.asarray(H, dtype=float)[layout.sensor_row[self.stuck], :N_AIRFRAME] \
-            if self.stuck.size else np.zeros((0, N_AIRFRAME))
+        self.stuck_h = self.H[self.stuck_rows, :N_AIRFRAME]                   # (k, 5)
         self.jammed = _indices(layout, "jammed")
         self.jammed_input = layout.actuator_input[self.jammed]
         self.weak = _indices(layout, "effectiveness")

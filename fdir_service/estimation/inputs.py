@@ -68,7 +68,7 @@ class RowSplit:
         derived = estimator.derived_rows
         thrust = ThrustCheck(estimator.airframe_params()) if THRUST_ROW in derived else None
         return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]),
-                   thrust, _pitot(estimator) if AIRSPEED_ROW in derived else None,
+                   thrust, pitot_row(estimator) if AIRSPEED_ROW in derived else None,
                    tuple(rows.index(r) if r in rows else -1 for r in ("theta", "q")))
 
     def split(self, y: np.ndarray, mask: np.ndarray, u: np.ndarray
@@ -82,9 +82,9 @@ class RowSplit:
         self.hold[fresh] = y[self.imu][fresh]
         u = np.asarray(u, dtype=float)[:2]
         y_obs, mask_obs = y[self.observed], mask[self.observed]
-        held = self.hold.copy()
+        held = self.hold
         if self.pitot is not None:              # hold = [ax, az, airspeed]: the trusted airspeed
-            held[2] = self.pitot.trusted(held[2])
+            held = np.array([held[0], held[1], self.pitot.trusted(held[2])])
         if self.thrust is not None:             # the derived throttle row
             ax, az, V = held
             y_obs = np.append(y_obs, self.thrust.implied_throttle(ax, az, V, u[0]) - u[1])
@@ -96,12 +96,6 @@ class RowSplit:
         if self.imu_as_input:
             u = np.concatenate([u, held])
         return y_obs, mask_obs, u
-
-
-def _pitot(estimator: EstimatorConfig) -> PitotRow:
-    """The `PitotRow` of an estimator that observes the airspeed (`AIRSPEED_ROW` derived)."""
-    sigma = estimator.sigma[estimator.measurements.index(AIRSPEED_ROW)]
-    return pitot_row(estimator, estimator.observed.index(AIRSPEED_ROW), sigma)
 
 
 NO_SPLIT = RowSplit(np.zeros(0, dtype=int), np.zeros(0, dtype=int), False)

@@ -132,10 +132,12 @@ NO_WIND = NoWind()
 """The wind part of a filter without a pitot (shared, stateless)."""
 
 
-def pitot_row(estimator, observed_row: int, sigma: float) -> PitotRow:
-    """The `PitotRow` of an estimator (`EstimatorConfig`) that observes the airspeed at observed_row."""
+def pitot_row(estimator) -> PitotRow:
+    """The `PitotRow` of an estimator (`EstimatorConfig`) that observes the airspeed (a derived row)."""
     faults, s = estimator.faults, estimator.settings
     entries = [j for j, f in enumerate(faults) if f.target == "airspeed"]
     held = [j for j in entries if faults[j].fault_type in ("stuck", "blocked")]
-    return PitotRow(np.array(entries), wind_entry(faults), np.array(held, dtype=int), observed_row, sigma,
-                    estimator.dt_s, (s.wind_gust_sigma, s.wind_gust_tau_s, s.wind_mean_tau_s))
+    sigma = estimator.sigma[estimator.measurements.index("airspeed")]
+    return PitotRow(np.array(entries), wind_entry(faults), np.array(held, dtype=int),
+                    estimator.observed.index("airspeed"), sigma, estimator.dt_s,
+                    (s.wind_gust_sigma, s.wind_gust_tau_s, s.wind_mean_tau_s))
