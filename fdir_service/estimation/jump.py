@@ -173,6 +173,9 @@ class ExitFold:
     def __init__(self, G: np.ndarray) -> None:
         self.G = np.asarray(G, dtype=float)
         self.columns = np.flatnonzero(np.abs(self.G).sum(axis=0) > 0)
+        c = self.columns
+        self._rows = slice(int(c[0]), int(c[-1]) + 1) if c.size and np.all(np.diff(c) == 1) else c
+        """The folding faults' rows as a slice when they are consecutive (views, not copies)."""
 
     @classmethod
     def for_sensors(cls, H: np.ndarray, sensor_row: np.ndarray) -> ExitFold:
@@ -185,8 +188,9 @@ class ExitFold:
         exit leaves in the fault entry (None: 0), so the fold moves the state by the rest. The fault
         values (k, N) of the folding faults' particles that will fold (0 elsewhere),
         or None when none folds this step."""
-        c = self.columns
-        fold = modes[c] & (v[c] < 0.5 * pi10[c])
+        c = self._rows
+        fold = v[c] < 0.5 * pi10[c]
+        fold &= modes[c]
         if not fold.any():
             return None
         gone = F[c] if reset_to is None else F[c] - reset_to[c, None]

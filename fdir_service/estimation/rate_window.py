@@ -19,7 +19,6 @@ integrates from now on.
 
 from __future__ import annotations
 
-from collections import deque
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -31,20 +30,26 @@ if TYPE_CHECKING:
 
 
 class RateWindow:
-    """The last `frames` (theta, q) measurement pairs (rad, rad/s) and their frame times (s)."""
+    """The last `frames` (theta, q) measurement pairs (rad, rad/s) and their frame times (s), oldest
+    first, in rows (t, theta, q) of a fixed (frames, 3) array."""
 
     def __init__(self, frames: int, min_frames: int) -> None:
-        self.samples: deque[tuple[float, float, float]] = deque(maxlen=int(frames))
+        self.buffer = np.empty((int(frames), 3))
+        self.count = 0
         self.min_frames = int(min_frames)
 
     def add(self, t: float, theta: float, q: float) -> None:
-        self.samples.append((t, theta, q))
+        if self.count == self.buffer.shape[0]:
+            self.buffer[:-1] = self.buffer[1:]
+        else:
+            self.count += 1
+        self.buffer[self.count - 1] = (t, theta, q)
 
     def bias(self) -> float | None:
         """mean(q) - LS slope of theta over the window (rad/s); None with too few samples."""
-        if len(self.samples) < self.min_frames:
+        if self.count < self.min_frames:
             return None
-        t, th, q = np.array(self.samples).T
+        t, th, q = self.buffer[:self.count].T
         tc = t - t.mean()
         slope = float(tc @ (th - th.mean()) / (tc @ tc))
         return float(q.mean()) - slope
@@ -68,8 +73,9 @@ class RateWindowAmplitude(AmplitudePredictor):
         """Add the frame's (theta, q) pair when both rows arrived; update the window's bias."""
         m = frame.mask
         if m[self.theta_row] and m[self.q_row]:
-            rows = np.cumsum(m) - 1                    # index of each arrived row in frame.yv
-            self.window.add(frame.t, float(frame.yv[rows[self.theta_row]]), float(frame.yv[rows[self.q_row]]))
+            k_theta = int(np.count_nonzero(m[:self.theta_row]))    # its index in frame.yv
+            k_q = int(np.count_nonzero(m[:self.q_row]))
+            self.window.add(frame.t, float(frame.yv[k_theta]), float(frame.yv[k_q]))
             self._bias = self.window.bias()
 
     def predict(self, X: np.ndarray, innovation: np.ndarray, mask: np.ndarray

@@ -98,15 +98,16 @@ class PriorSentinels:
         js, consts = self.rows(frame.mask)
         if js.size == 0:
             return None
-        bonus = np.zeros(X.shape[1])
-        for j, (sj, logc) in zip(js.tolist(), consts.tolist(), strict=True):
-            cols = np.flatnonzero(sentinels[j])
-            if cols.size == 0:
-                continue
-            eps = rng.standard_normal(cols.size)
-            X[N_AIRFRAME + j][cols] += sj * eps
-            k = self.carry_index.get(j)
-            if k is not None:          # an actuator sentinel's state carries its fault's frame
-                X[:N_AIRFRAME, cols] += self.carry_B[:, k:k + 1] * (sj * eps)
-            bonus[cols] += logc + 0.5 * eps * eps
+        rows, cols = np.nonzero(sentinels[js])       # fault-major: the draws in turn per fault
+        if cols.size == 0:
+            return np.zeros(X.shape[1])
+        eps = rng.standard_normal(cols.size)
+        step = consts[rows, 0] * eps
+        X[N_AIRFRAME + js[rows], cols] += step
+        for k, j in enumerate(js.tolist()):
+            c = self.carry_index.get(j)
+            if c is not None:          # an actuator sentinel's state carries its fault's frame
+                mine = rows == k
+                X[:N_AIRFRAME, cols[mine]] += self.carry_B[:, c:c + 1] * step[mine]
+        bonus = np.bincount(cols, consts[rows, 1] + 0.5 * eps * eps, minlength=X.shape[1])
         return bonus

@@ -241,7 +241,7 @@ def test_robust_estimator_proposes_gyro_sentinels_from_the_window_and_moves_thei
 
     f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
     amp, carry = f.parts.jump.amplitude, f.parts.jump.carry
-    assert isinstance(amp, RateWindowAmplitude) and amp.window.samples.maxlen == 40
+    assert isinstance(amp, RateWindowAmplitude) and amp.window.buffer.shape[0] == 40
     assert isinstance(carry, ActuatorCarry)
     j = robust.observed.index("q")
     gyro = [k for k, x in enumerate(robust.faults) if x.target == "q"][0]
