@@ -160,6 +160,7 @@ class FilterSettings:
     wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.GustWind) ...
     wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
+    wind_hold: float = 0.0               # 0..1: the share of a ground-speed change that is the wind's
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -391,6 +392,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         wind_gust_sigma=f.take("wind_gust_sigma", "number", d.wind_gust_sigma, check=NON_NEGATIVE),
         wind_gust_tau_s=f.take("wind_gust_tau_s", "number", d.wind_gust_tau_s, check=POSITIVE),
         wind_mean_tau_s=f.take("wind_mean_tau_s", "number", d.wind_mean_tau_s, check=POSITIVE),
+        wind_hold=f.take("wind_hold", "number", d.wind_hold, check=UNIT_INTERVAL),
         imm=_imm(f, faults), gating=_gating(f), **words)
     f.finish()
     return s

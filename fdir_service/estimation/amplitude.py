@@ -25,6 +25,12 @@ from fdir_service.estimation.fault_types import NOISY_SIGMA
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 
+NO_ONSET_STEP = ("blocked",)
+"""Types whose fault has no onset step: a blocked pitot reads the air at the moment it blocks and
+leaves it only as the altitude changes (g dh / V), so its new entry starts at the particle's own
+value, A = f, and no frame's innovation is taken as its offset (the innovation of a healthy
+particle whose wind lags a gust is not a blockage)."""
+
 
 class AmplitudePredictor:
     """A = f + G r for every fault, with a gain G (nf, m_rows) per measurement mask (cached).
@@ -57,7 +63,7 @@ class AmplitudePredictor:
         sigma = np.full(lay.nf, np.inf)
         for j, r in enumerate(lay.sensor_row):
             if r >= 0 and mask[r]:
-                G[j, np.searchsorted(rows, r)] = 1.0
+                G[j, np.searchsorted(rows, r)] = 0.0 if lay.type_of(j) in NO_ONSET_STEP else 1.0
                 avail[j] = True
                 sigma[j] = self.meas.sigma[r]
         for j, r in enumerate(lay.direct_row):        # an input its own derived row observes

@@ -17,7 +17,7 @@ import numpy as np
 from fdir_service.airframe.linearize import LinearModel, linear_model
 from fdir_service.airframe.params import AirframeParams, load_airframe
 from fdir_service.estimation.adaptive import AdaptiveTransition
-from fdir_service.estimation.amplitude import AmplitudePredictor
+from fdir_service.estimation.amplitude import NO_ONSET_STEP, AmplitudePredictor
 from fdir_service.estimation.correction import KalmanCorrection, Likelihood
 from fdir_service.estimation.drift_type import (
     DriftAnchor,
@@ -229,6 +229,7 @@ def _sentinel_weighting(estimator: EstimatorConfig, layout: FaultLayout, meas: M
     carried = np.zeros(layout.nf, dtype=bool)
     carried[list(getattr(carry, "index", {}))] = True
     log_c = prior_log_constants(amax, layout.sensor_row, carried)
+    log_c[[layout.type_of(j) in NO_ONSET_STEP for j in range(layout.nf)]] = np.nan   # no spread, no prior
     if not np.isfinite(log_c).any():
         return ThesisSentinels()
     return PriorSentinels(log_c, layout.sensor_row, meas.sigma, amp, carry)

@@ -107,8 +107,9 @@ class ParticleFilter:
         p, rng = self.parts, self.rng
         y, mask, u = self.rows.split(y, mask, u)
         frame = Frame.of(t, y, mask, u, self.meas)
+        u_before = self.X[1].copy()
         X = p.predict.predict(self.X, self.modes, frame.u, rng)
-        self.wind.evolve(X, self.modes, y, mask, rng)
+        self.wind.evolve(X, self.modes, y, mask, rng, u_before)
         move_lw = p.jump.jump(X, self.modes, self.w, frame, rng)
         bonus = p.sentinel_weighting.weigh(X, frame, p.jump.sentinels, rng)
         ll = p.correction.update(X, self.w, self.modes, frame)

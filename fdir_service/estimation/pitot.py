@@ -9,10 +9,19 @@ entry is the wind plus the pitot's offset. `PitotRow` is the wind's model and th
 - `evolve`, after each prediction: a Gauss-Markov wind, a mean plus a Dryden-shaped gust (the
   first-order form of MIL-F-8785C's longitudinal gust, sigma_u over L_u / V):
 
-      W+ = M + a (W - M) + sigma sqrt(1 - a^2) e,    a = exp(-dt / tau),   e ~ N(0, 1)
+      c+ = M + a (c - M) + sigma sqrt(1 - a^2) e,    a = exp(-dt / tau),   e ~ N(0, 1),
+      c = W + kappa u,   W+ = c+ - kappa u+
 
-  on the mode-0 particles, with M the mean wind (one value, following the mode-0 particles' mean
-  with time constant tau_m while the pitot is fault-free). A gust returns to the mean, so an
+  on the mode-0 particles, with M the mean of c (one value, following the mode-0 particles' mean
+  with time constant tau_m while the pitot is fault-free) and u, u+ the particle's ground speed
+  before and after the prediction. kappa (`parts.wind_hold`) is the share of a ground-speed
+  change that is the wind's. kappa = 0: an aircraft that flies through the gusts on its inertia,
+  the airspeed takes the gust and c is the head wind. kappa = 1: under an autopilot's airspeed
+  hold a gust moves the ground speed, not the airspeed; c = u + W is the airspeed the healthy
+  pitot reads, its gusts what the hold lets through, M the held airspeed. With kappa = 0 in such
+  flight the wind had to follow every swing of u through its gust model alone and lagged the fast
+  ones, so a held-reading hypothesis (blocked) fitted the steady reading better than the healthy
+  pitot (false alarms in level flight). A gust returns to the mean, so an
   offset that stands longer than the gusts last is a fault, not wind; a stuck or blocked pitot's
   entry anti-tracks the wind's move (its reading does not see the air), so the wind keeps drifting
   unobserved under a held pitot and after a long fault the cloud spans the winds it may have become;
@@ -53,11 +62,13 @@ class PitotRow:
 
     entries (k,): the fault entries on the pitot; wind: the wind's entry (-1: none); held (h,): the
     stuck and blocked entries on the pitot; row: the derived airspeed row among the observed rows;
-    sigma (m/s): its noise (the spread of the wind's start); dt (s); gust (sigma m/s, tau s, tau_m s).
+    sigma (m/s): its noise (the spread of the wind's start); dt (s); gust (sigma m/s, tau s, tau_m s);
+    hold: kappa, the share of a ground-speed change that is the wind's (parts.wind_hold).
     """
 
     def __init__(self, entries: np.ndarray, wind: int, held: np.ndarray, row: int, sigma: float,
-                 dt: float = 0.05, gust: tuple[float, float, float] = (1.5, 10.0, 60.0)) -> None:
+                 dt: float = 0.05, gust: tuple[float, float, float] = (1.5, 10.0, 60.0),
+                 hold: float = 0.0) -> None:
         self.entries = np.asarray(entries, dtype=int)
         self.wind = int(wind)
         self.held = np.asarray(held, dtype=int)
@@ -67,8 +78,11 @@ class PitotRow:
         self.a = math.exp(-dt / tau)
         self.step_sigma = g_sigma * math.sqrt(1.0 - self.a * self.a)
         self.mean_rate = min(dt / tau_m, 1.0)
+        self.hold = float(hold)
+        """kappa (0..1): the share of the ground speed's predicted change that the wind takes (`evolve`)."""
         self.mean: float | None = None
-        """m/s: the mean wind M the gusts return to (None before the first pitot reading)."""
+        """m/s: the mean M the gusts return to, of W + kappa u: the mean wind (kappa = 0), the mean
+        airspeed (kappa = 1) (None before the first pitot reading)."""
         self.error = 0.0
         """m/s: the pitot's estimated fault after the last step (`follow`)."""
 
@@ -82,9 +96,11 @@ class PitotRow:
         return airspeed - self.error
 
     def evolve(self, X: np.ndarray, modes: np.ndarray, y: np.ndarray, mask: np.ndarray,
-               rng: np.random.Generator) -> None:
+               rng: np.random.Generator, u_before: np.ndarray | None = None) -> None:
         """After the prediction of the cloud X (n, N), modes (nf, N), with the frame's observed rows
-        y, mask (m_obs,): start the wind on the first pitot reading, else move it (in place)."""
+        y, mask (m_obs,): start the wind on the first pitot reading, else move it (in place):
+        c = W + kappa u returns to M as a gust and W+ = c+ - kappa u+, u_before (N,) m/s the ground
+        speed before the prediction (None: u did not change)."""
         if self.wind < 0:
             return
         if self.mean is None:
@@ -92,23 +108,31 @@ class PitotRow:
             return
         W = X[N_AIRFRAME + self.wind]
         free = ~modes[self.wind]
-        step = (self.mean + self.a * (W - self.mean) + self.step_sigma * rng.standard_normal(W.size)) - W
+        c = self._held_sum(W, X[1] if u_before is None else u_before)
+        c_next = self.mean + self.a * (c - self.mean) + self.step_sigma * rng.standard_normal(W.size)
+        step = (c_next - self.hold * X[1] if self.hold > 0.0 else c_next) - W     # W+ = c+ - kappa u+
         step *= free
         W += step
         X[N_AIRFRAME + self.held] -= step * modes[self.held]
-        self._follow_mean(W, free & ~modes[self.held].any(axis=0))
+        self._follow_mean(self._held_sum(W, X[1]), free & ~modes[self.held].any(axis=0))
+
+    def _held_sum(self, W: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """c = W + kappa u (m/s, (N,)): the quantity whose gusts return to the mean M, the head wind
+        (kappa = 0) or, under an airspeed hold (kappa = 1), the airspeed u + W."""
+        return W + self.hold * u if self.hold > 0.0 else W
 
     def _start(self, X: np.ndarray, y: np.ndarray, mask: np.ndarray, rng: np.random.Generator) -> None:
         """On the first frame whose pitot arrived: X[wind] = y_pitot - u + N(0, sigma^2) per particle."""
         if not mask[self.row] or not np.isfinite(y[self.row]):
             return
         X[N_AIRFRAME + self.wind] = y[self.row] - X[1] + self.sigma * rng.standard_normal(X.shape[1])
-        self.mean = float(np.mean(X[N_AIRFRAME + self.wind]))
+        self.mean = float(np.mean(self._held_sum(X[N_AIRFRAME + self.wind], X[1])))
 
-    def _follow_mean(self, W: np.ndarray, fault_free: np.ndarray) -> None:
-        """M follows the fault-free particles' mean wind while they are most of the cloud."""
-        if 2 * np.count_nonzero(fault_free) > W.size:
-            self.mean += self.mean_rate * (float(W[fault_free].mean()) - self.mean)
+    def _follow_mean(self, c: np.ndarray, fault_free: np.ndarray) -> None:
+        """M follows the fault-free particles' mean of c (W + kappa u, m/s) while they are most of
+        the cloud."""
+        if 2 * np.count_nonzero(fault_free) > c.size:
+            self.mean += self.mean_rate * (float(c[fault_free].mean()) - self.mean)
 
     def follow(self, fault_estimate: np.ndarray) -> None:
         """After a step: the sum of the pitot entries' estimates (nf,) SI, each the change from its
@@ -121,7 +145,7 @@ class NoWind:
     """An estimator that does not watch the pitot: no wind to move, no fault to follow."""
 
     def evolve(self, X: np.ndarray, modes: np.ndarray, y: np.ndarray, mask: np.ndarray,
-               rng: np.random.Generator) -> None:
+               rng: np.random.Generator, u_before: np.ndarray | None = None) -> None:
         """Nothing moves."""
 
     def follow(self, fault_estimate: np.ndarray) -> None:
@@ -140,4 +164,4 @@ def pitot_row(estimator) -> PitotRow:
     sigma = estimator.sigma[estimator.measurements.index("airspeed")]
     return PitotRow(np.array(entries), wind_entry(faults), np.array(held, dtype=int),
                     estimator.observed.index("airspeed"), sigma, estimator.dt_s,
-                    (s.wind_gust_sigma, s.wind_gust_tau_s, s.wind_mean_tau_s))
+                    (s.wind_gust_sigma, s.wind_gust_tau_s, s.wind_mean_tau_s), s.wind_hold)

@@ -104,6 +104,25 @@ def test_a_held_pitot_does_not_follow_the_wind_and_the_mean_follows_only_fault_f
     assert 8.0 < part.mean < 8.1                                           # M moves towards 9 by dt / 60 s
 
 
+def test_under_an_airspeed_hold_the_wind_takes_the_ground_speeds_change_and_a_held_reading_stays():
+    part = PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, dt=0.05,
+                    gust=(0.0, 10.0, 60.0), hold=1.0)   # no gust: only the hold moves the wind
+    part.mean = 40.0                                 # kappa = 1: the mean is the held airspeed, u + W
+    X = cloud(2)
+    modes = np.zeros((LAYOUT.nf, 2), dtype=bool)
+    modes[BLK, 1] = True                             # the second particle holds the pitot blocked
+    X[N_AIRFRAME + BLK, 1] = 1.0
+    before = MEAS.predict(X)[1].copy()
+    u_before = X[1].copy()
+    X[1] += 1.5                                      # the prediction sped the aircraft up by 1.5 m/s ...
+    X[N_AIRFRAME + BLK, 1] -= 1.5                    # ... which a held reading does not see (TypedEvolution)
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), np.random.default_rng(3), u_before)
+    np.testing.assert_allclose(X[N_AIRFRAME + WIND], [6.5, 6.5])          # the head wind fell by 1.5
+    np.testing.assert_allclose(MEAS.predict(X)[1], before)                # healthy: the airspeed held
+    np.testing.assert_allclose(X[N_AIRFRAME + BLK, 1], 1.0)               # blocked: held, wind moves anyway
+    assert part.hold == 1.0 and load_estimator("aerosonde-catalogue").settings.wind_hold == 1.0
+
+
 def test_a_blocked_pitot_in_mode_1_reads_g_dh_over_v_more_in_a_climb_and_holds_in_level_flight():
     ev = TypedEvolution(LAYOUT, MEAS.H, WIND)
     X = cloud(2)
