@@ -107,7 +107,7 @@ class ParticleFilter:
         p, rng = self.parts, self.rng
         y, mask, u = self.rows.split(y, mask, u)
         frame = Frame.of(t, y, mask, u, self.meas)
-        u_before = None if self.wind is NO_WIND else self.X[1].copy()    # the ground speed, m/s (N,)
+        u_before = self.X[1].copy()                # the ground speed before the prediction, m/s (N,)
         X = p.predict.predict(self.X, self.modes, frame.u, rng)
         self.wind.evolve(X, self.modes, y, mask, rng, u_before)
         move_lw = p.jump.jump(X, self.modes, self.w, frame, rng)
