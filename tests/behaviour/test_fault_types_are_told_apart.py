@@ -34,11 +34,12 @@ def climb():
     return sc, tr, tr.y[:, rows].copy(), tr.mask[:, rows] & (rows >= 0)
 
 
-def monitor(sc, tr, y, mask):
-    """(declared (K, nf) bool by the service's hysteresis, fault_value (K, nf)) of the catalogue."""
+def monitor(sc, tr, y, mask, seed: int = 1):
+    """(declared (K, nf) bool by the service's hysteresis, fault_value (K, nf)) of the catalogue,
+    its filter drawn from `seed`."""
     def new(x0=None):
         kw = {} if x0 is None else {"x0": x0}
-        return build_filter("RJMRPF", sc.estimator, np.random.default_rng(1), **kw)
+        return build_filter("RJMRPF", sc.estimator, np.random.default_rng(seed), **kw)
 
     filt = _first_frame_start(sc, new)(y[0], mask[0])
     outs = [filt.step(tr.t[k], y[k], mask[k], tr.u[k]) for k in range(len(tr.t))]
@@ -76,18 +77,24 @@ def test_a_stuck_attitude_sensor_in_a_climb_is_declared_stuck_within_3_s(climb):
 
 
 def test_a_barometer_whose_noise_triples_is_declared_noisy_with_its_k(climb):
-    sc, tr, y, mask = climb
+    """Eight filters and noise draws on the same climb: one draw's delay says little (12 draws at
+    360c8f4: 0.25-2.25 s, median 0.9 s; the first was 1.25 s before the pitot's hold, 2.25 s after,
+    the others alike), so the delay is judged at the median."""
+    sc, tr, y0, mask = climb
     j = sc.estimator.measurements.index("baro_alt")
     on = during(tr.t)
-    y = y.copy()
     true_sigma = sc.sensors.sigma["baro_alt"]
-    y[on, j] += np.sqrt(8.0) * true_sigma * np.random.default_rng(0).standard_normal(on.sum())
-    dec, value = monitor(sc, tr, y, mask)
+    k_true = 3.0 * true_sigma / sc.estimator.sigma[j]       # k is against the assumed noise
     noisy = [f.id for f in sc.estimator.faults].index("baro_nz")
-    first = tr.t[np.flatnonzero(dec[:, noisy] & on)[0]]
-    assert first - ONSET_S < 2.0
-    assumed = sc.estimator.sigma[j]
-    k_true = 3.0 * true_sigma / assumed                      # k is against the assumed noise
-    k_est = np.median(value[on & (tr.t > ONSET_S + 3.0), noisy])
-    assert abs(k_est - k_true) < 0.5
-    assert ids_declared(sc, dec, on) <= {"baro_nz"}
+    delays, k_est = [], []
+    for seed in range(1, 9):
+        y = y0.copy()
+        y[on, j] += np.sqrt(8.0) * true_sigma * np.random.default_rng(seed - 1).standard_normal(on.sum())
+        dec, value = monitor(sc, tr, y, mask, seed)
+        hits = np.flatnonzero(dec[:, noisy] & on)
+        assert hits.size and tr.t[hits[0]] - ONSET_S < 3.0, f"seed {seed}: not declared within 3 s"
+        assert ids_declared(sc, dec, on) <= {"baro_nz"}, f"seed {seed}: {ids_declared(sc, dec, on)}"
+        delays.append(tr.t[hits[0]] - ONSET_S)
+        k_est.append(np.median(value[on & (tr.t > ONSET_S + 3.0), noisy]))
+    assert np.median(delays) < 2.0, f"delays {np.round(delays, 2)}"
+    assert abs(np.median(k_est) - k_true) < 0.5, f"k {np.round(k_est, 2)} against {k_true:.2f}"
