@@ -107,9 +107,8 @@ class ParticleFilter:
         p, rng = self.parts, self.rng
         y, mask, u = self.rows.split(y, mask, u)
         frame = Frame.of(t, y, mask, u, self.meas)
-        u_before = self.X[1].copy()                # the ground speed before the prediction, m/s (N,)
-        X = p.predict.predict(self.X, self.modes, frame.u, rng)
-        self.wind.evolve(X, self.modes, y, mask, rng, u_before)
+        X = p.predict.predict(self.X, self.modes, frame.u, rng)   # a new array: self.X stays the prior
+        self.wind.evolve(X, self.modes, y, mask, rng, self.X[1])  # its ground speed, m/s (N,)
         move_lw = p.jump.jump(X, self.modes, self.w, frame, rng)
         bonus = p.sentinel_weighting.weigh(X, frame, p.jump.sentinels, rng)
         ll = p.correction.update(X, self.w, self.modes, frame)
