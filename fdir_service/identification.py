@@ -5,12 +5,11 @@ What the robust monitor needs of its airframe is the pitch balance of `kinematic
     q' / K(V) = C_m0 + C_ma alpha + C_mq c q / (2 V) + C_mde delta_e,   K = qbar S c / J_y,
     C_L       = -a_z m / (qbar S) = C_L0 + C_La alpha + C_Lde delta_e   (linear below stall),
 
-with V the pitot's airspeed, a_z the accelerometer, delta_e the elevator the autopilot applied and
-q' the gyro differentiated (central differences). Both are linear in their coefficients, so they
-are fitted by equation-error least squares (scipy.linalg.lstsq) with the airframe file's values as
-a Gaussian prior (each coefficient +-`PRIOR_FRACTION` of itself): a level survey leg excites the
-slopes little, and the prior keeps what the flight cannot tell as the file says, while the
-trim (what the flight always tells) moves to the aircraft's.
+with V the pitot's airspeed, a_z the accelerometer and delta_e the elevator the autopilot applied.
+Both are linear in their coefficients, so they are fitted by least squares (scipy.linalg.lstsq)
+with the airframe file's values as a Gaussian prior (each slope +-`PRIOR_FRACTION` of itself): a
+level survey leg excites the slopes little, and the prior keeps what the flight cannot tell as the
+file says, while the trim (what the flight always tells) moves to the aircraft's.
 
 The angle of attack of the lift fit is asin(w / V) (w the body-axis velocity over the ground,
 V the pitot's airspeed: right in calm air and in a steady horizontal wind, noise in gusts). The
@@ -19,8 +18,24 @@ moment is fitted on the lift the accelerometer measures, the way the monitor use
     q' / K = a0 + a1 C_L + a2 c q / (2 V) + a3 delta_e,
     a1 = C_ma / C_La,  a2 = C_mq,  a3 = C_mde - C_ma C_Lde / C_La,  a0 = C_m0 - C_ma C_L0 / C_La,
 
-so an error in the lift curve's slope does not leak into what the monitor predicts. Mass, inertia
-and geometry are the file's. Units SI (rad, m/s, s).
+so an error in the lift curve's slope does not leak into what the monitor predicts. Three things
+keep this fit honest on a real flight (`_moment_rows`, `_fit_moment`):
+
+- **One row per frame interval.** The input of frame k is the elevator held since frame k - 1
+  (`fdir_service.runtime.frames`: the input of frame k is u_{k-1}), so a row is the interval (k-1, k]: q' the
+  gyro's forward difference over it, the lift, pitch rate and airspeed at its midpoint (the mean
+  of its ends), and that held elevator. A central difference with the elevator of one end mixes two
+  elevators and, in closed loop, fitted a positive pitch damping even in calm air.
+- **Instrumental variables.** The accelerometer's noise (and a gust inside a frame) is noise in the
+  regressor C_L, which least squares answers with slopes shrunk towards zero (by a quarter on
+  real-turbulence and real-jsbsim, more in the elevator's C_mde'). The regressors of the intervals
+  two and three frames back (`INSTRUMENT_LAGS`: they share no sample with the row's) are the
+  instruments: two-stage least squares, the prior applied in the second stage.
+- **Physical signs.** A slope whose fit has the opposite sign of the file's (an unstable pitch
+  damping C_mq > 0, say: a turbulence model the equation lacks, such as JSBSim's rotational gusts)
+  is not physics the monitor can use: it is kept at the file's value, and the others refitted.
+
+Mass, inertia and geometry are the file's. Units SI (rad, m/s, s).
 """
 
 from __future__ import annotations
@@ -74,6 +89,8 @@ class Coefficient:
     prior: float
     estimate: float
     std: float
+    kept: bool = False
+    """True: the flight's fit had the opposite sign of the file's, so the file's value is kept."""
 
 
 @dataclass
@@ -97,7 +114,9 @@ class Identification:
                  f"pitch q':  residual RMS {self.moment_residual_std:.3f} rad/s^2 (file's airframe: "
                  f"{self.moment_residual_std_before:.3f}), R^2 {self.moment_r2:.3f}",
                  f"{'coefficient':<12}{'file':>10}{'fitted':>10}{'+- std':>10}"]
-        lines += [f"{c.name:<12}{c.prior:>10.4f}{c.estimate:>10.4f}{c.std:>10.4f}" for c in self.coefficients]
+        kept = "   kept: the flight's fit had the wrong sign"
+        lines += [f"{c.name:<12}{c.prior:>10.4f}{c.estimate:>10.4f}{c.std:>10.4f}" + (kept if c.kept else "")
+                  for c in self.coefficients]
         return "\n".join(lines)
 
 
@@ -186,46 +205,81 @@ def _rms(x: np.ndarray) -> float:
 
 
 def _usable(frames: FlightFrames) -> dict[str, np.ndarray]:
-    """Per-frame signals where every needed row arrived and the gyro has both neighbours."""
+    """Per-frame signals (K,): the needed rows (NaN where missing), t, the elevator of the frame's
+    input (rad), and `ok` where every needed row arrived with a usable airspeed."""
     missing = [r for r in NEEDED_ROWS if r not in frames.rows]
     if missing:
         raise ValueError(f"the flight's frames lack rows {missing}; identify needs {', '.join(NEEDED_ROWS)}")
-    cols = {r: frames.column(r) for r in NEEDED_ROWS}
-    q = cols["q"]
-    dt = np.gradient(frames.t)
-    qdot = np.gradient(q, frames.t)
-    ok = np.isfinite(qdot) & (dt > 0)
+    s = {r: frames.column(r) for r in NEEDED_ROWS}
+    ok = s["airspeed"] > 5.0                      # False for NaN too
     for r in NEEDED_ROWS:
-        ok &= np.isfinite(cols[r])
-    ok &= cols["airspeed"] > 5.0
-    if ok.sum() < MIN_FRAMES:
-        raise ValueError(f"only {int(ok.sum())} usable frames (need {MIN_FRAMES}: 10 s with "
+        ok &= np.isfinite(s[r])
+    s["t"], s["de"], s["ok"] = np.asarray(frames.t, float), np.asarray(frames.u, float)[:, 0], ok
+    return s
+
+
+INSTRUMENT_LAGS = (2, 3)
+"""The instruments of the row of interval (k-1, k]: the regressors of the intervals ending at
+frames k-2 and k-3, which share no sample (and no sample's noise) with the row."""
+
+
+def _intervals(s: dict[str, np.ndarray]) -> np.ndarray:
+    """Frames k (n,) whose interval (k-1, k] and the instruments' intervals (back to frame
+    k - 1 - max lag) have every needed row at both ends, time increasing."""
+    ok, t = s["ok"], s["t"]
+    back = max(INSTRUMENT_LAGS) + 1
+    k = np.arange(back, ok.size)
+    good = np.ones(k.size, dtype=bool)
+    for lag in range(back + 1):
+        good &= ok[k - lag]
+    for lag in range(back):
+        good &= t[k - lag] > t[k - lag - 1]
+    k = k[good]
+    if k.size < MIN_FRAMES:
+        raise ValueError(f"only {k.size} usable frames (need {MIN_FRAMES}: 10 s with "
                          f"{', '.join(NEEDED_ROWS)} all present)")
-    out = {r: v[ok] for r, v in cols.items()}
-    out["qdot"], out["de"] = qdot[ok], frames.u[ok, 0]
-    return out
+    return k
+
+
+def _instruments(s: dict[str, np.ndarray], k: np.ndarray, p: AirframeParams) -> np.ndarray:
+    """Z (n, 1 + 3 x lags): a constant and the regressors of the intervals INSTRUMENT_LAGS back."""
+    cols = [np.ones(k.size)] + [_moment_rows(s, k - lag, p)[0][:, 1:] for lag in INSTRUMENT_LAGS]
+    return np.column_stack(cols)
+
+
+def _lift_coefficient(az: np.ndarray, V: np.ndarray, p: AirframeParams) -> np.ndarray:
+    """C_L = -a_z m / (qbar S) from the accelerometer (m/s^2) at airspeed V (m/s)."""
+    return -az * p.m / (0.5 * p.rho * V * V * p.S)
 
 
 def _fit_lift(s: dict[str, np.ndarray], p: AirframeParams) -> tuple[np.ndarray, np.ndarray, float, float]:
-    V = s["airspeed"]
-    qbar_S = 0.5 * p.rho * V * V * p.S
-    CL = -s["az"] * p.m / qbar_S
-    alpha = np.arcsin(np.clip(s["w"] / V, -0.5, 0.5))
-    A = np.column_stack([np.ones_like(V), alpha, s["de"]])
+    """The lift curve on the frames themselves: C_L at frame k is made by the elevator held since
+    frame k - 1, the frame's input."""
+    ok = s["ok"]
+    V, w, de = s["airspeed"][ok], s["w"][ok], s["de"][ok]
+    CL = _lift_coefficient(s["az"][ok], V, p)
+    alpha = np.arcsin(np.clip(w / V, -0.5, 0.5))
+    A = np.column_stack([np.ones_like(V), alpha, de])
     prior = np.array([p.C_L0, p.C_La, p.C_Lde])
     x, std = _ridge(A, CL, prior, _prior_std(prior), noise_std=0.02)
     resid = CL - A @ x
     return x, std, _rms(resid), _r2(resid, CL)
 
 
-def _moment_terms(s: dict[str, np.ndarray], p: AirframeParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(A (K, 4), b (K,), K(V) (K,)) of q'/K = a0 + a1 C_L + a2 c q / 2V + a3 delta_e."""
-    V = s["airspeed"]
-    qbar_S = 0.5 * p.rho * V * V * p.S
-    K = qbar_S * p.c / p.Jy
-    CL = -s["az"] * p.m / qbar_S
-    A = np.column_stack([np.ones_like(V), CL, s["q"] * p.c / (2.0 * V), s["de"]])
-    return A, s["qdot"] / K, K
+def _moment_rows(s: dict[str, np.ndarray], k: np.ndarray, p: AirframeParams
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A (n, 4), b (n,), K(V) (n,)) of q'/K = a0 + a1 C_L + a2 c q / 2V + a3 delta_e over the frame
+    intervals (k-1, k]: q' the gyro's forward difference, C_L, q and V at the midpoint, the elevator
+    held over the interval (the input of frame k)."""
+    j = k - 1
+    Vj, Vk = s["airspeed"][j], s["airspeed"][k]
+    V = 0.5 * (Vj + Vk)
+    CL = 0.5 * (_lift_coefficient(s["az"][j], Vj, p) + _lift_coefficient(s["az"][k], Vk, p))
+    q = 0.5 * (s["q"][j] + s["q"][k])
+    qdot = (s["q"][k] - s["q"][j]) / (s["t"][k] - s["t"][j])
+    K = 0.5 * p.rho * V * V * p.S * p.c / p.Jy
+    A = np.column_stack([np.ones_like(V), CL, q * p.c / (2.0 * V), s["de"][k]])
+    return A, qdot / K, K
 
 
 def _combined(p: AirframeParams) -> np.ndarray:
@@ -234,16 +288,40 @@ def _combined(p: AirframeParams) -> np.ndarray:
     return np.array([p.C_m0 - r * p.C_L0, r, p.C_mq, p.C_mde - r * p.C_Lde])
 
 
+PINNED_STD = 1e-9
+"""Prior std (relative to the file's value) of a slope kept at the file's: a fixed coefficient."""
+
+
+def _fit_moment(A: np.ndarray, Z: np.ndarray, b: np.ndarray, prior: np.ndarray, noise_std: float
+                ) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Two-stage least squares of A a = b with instruments Z (n, >= 4) and the prior N(prior, std^2)
+    in the second stage; slopes (a1..a3) fitted with the opposite sign of the file's are kept at the
+    file's. Returns (a (4,), posterior std (4,), indices of the slopes kept)."""
+    coef, *_ = lstsq(Z, A)
+    A_hat = Z @ coef                               # the regressors as the instruments explain them
+    std = _prior_std(prior)
+    kept: list[int] = []
+    while True:
+        a, a_std = _ridge(A_hat, b, prior, std, noise_std)
+        wrong = [i for i in (1, 2, 3) if i not in kept and a[i] * prior[i] < 0]
+        if not wrong:
+            return a, a_std, kept
+        kept += wrong
+        std[wrong] = PINNED_STD * np.maximum(np.abs(prior[wrong]), 1.0)
+
+
 def identify(frames: FlightFrames, base: AirframeParams) -> Identification:
     """Fit lift and pitching moment of `base` (the airframe file) to a fault-free flight."""
     s = _usable(frames)
+    k = _intervals(s)
     lift, lift_std, lift_res, lift_r2 = _fit_lift(s, base)
     if not lift_r2 >= LIFT_MIN_R2:            # the flight does not tell the lift curve: the file's
         lift = np.array([base.C_L0, base.C_La, base.C_Lde])
-    A, b, K = _moment_terms(s, base)
+    A, b, K = _moment_rows(s, k, base)
+    Z = _instruments(s, k, base)
     prior = _combined(base)
     before = _rms((b - A @ prior) * K)
-    a, a_std = _ridge(A, b, prior, _prior_std(prior), noise_std=max(before, 1e-3) / float(np.median(K)))
+    a, a_std, kept = _fit_moment(A, Z, b, prior, noise_std=max(before, 1e-3) / float(np.median(K)))
     resid = b - A @ a
     C_L0, C_La, C_Lde = lift
     C_ma = a[1] * C_La
@@ -252,8 +330,9 @@ def identify(frames: FlightFrames, base: AirframeParams) -> Identification:
                                  C_m0=float(a[0] + a[1] * C_L0), C_mde=float(a[3] + a[1] * C_Lde))
     coefs = [Coefficient(n, float(getattr(base, n)), float(getattr(params, n)), float(sd))
              for n, sd in (("C_L0", lift_std[0]), ("C_La", lift_std[1]), ("C_Lde", lift_std[2]))]
-    coefs += [Coefficient(n, float(pv), float(ev), float(sd)) for n, pv, ev, sd in
-              zip(("a0 (C_m0')", "a1 (C_ma/C_La)", "C_mq", "a3 (C_mde')"), prior, a, a_std, strict=True)]
+    names = ("a0 (C_m0')", "a1 (C_ma/C_La)", "C_mq", "a3 (C_mde')")
+    coefs += [Coefficient(names[i], float(prior[i]), float(a[i]), float(a_std[i]), i in kept)
+              for i in range(4)]
     return Identification(params, coefs, int(b.size), lift_res, lift_r2, _rms(resid * K),
                           _r2(resid, b), before)
 

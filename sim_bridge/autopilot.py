@@ -194,3 +194,33 @@ def _clip(x: float, lo: float, hi: float) -> float:
     if x > hi:
         return float(hi)
     return x
+
+
+class ElevatorDoublet:
+    """Identification excitation on top of the autopilot's elevator (`sim-bridge fly --doublet DEG`):
+    +amplitude for width_s, then -amplitude for width_s, every period_s from start_s (the flight
+    time, s); the sum stays within the elevator's travel. The doublet moves the elevator
+    independently of the state, which the autopilot's own corrections do not (`fdir identify`)."""
+
+    def __init__(self, amplitude_rad: float, period_s: float = 10.0, width_s: float = 0.5,
+                 start_s: float = 5.0) -> None:
+        if not (math.isfinite(amplitude_rad) and 0.0 <= amplitude_rad <= ELEVATOR_LIMIT_RAD):
+            raise ValueError(f"--doublet: expected 0 to {math.degrees(ELEVATOR_LIMIT_RAD):g} deg, "
+                             f"got {math.degrees(amplitude_rad):g}")
+        self.amplitude = float(amplitude_rad)
+        self.period, self.width, self.start = float(period_s), float(width_s), float(start_s)
+
+    def offset(self, t: float) -> float:
+        """The doublet's elevator (rad) at flight time t (s)."""
+        if self.amplitude == 0.0 or t < self.start - 1e-9:
+            return 0.0
+        phase = (t - self.start + 1e-9) % self.period
+        if phase < self.width:
+            return self.amplitude
+        return -self.amplitude if phase < 2.0 * self.width else 0.0
+
+    def add(self, t: float, u: np.ndarray) -> np.ndarray:
+        """u (2,) = [delta_e rad, delta_t] with the doublet added to the elevator (a new array)."""
+        out = np.array(u, dtype=float)
+        out[0] = _clip(out[0] + self.offset(t), -ELEVATOR_LIMIT_RAD, ELEVATOR_LIMIT_RAD)
+        return out

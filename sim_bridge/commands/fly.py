@@ -80,6 +80,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "its outputs and its PARAM_VALUE answers (e.g. --param SERVO2_FUNCTION=0 --param "
                         "SERVO5_FUNCTION=19 --param SERVO5_REVERSED=1: the elevator on output 5, reversed); "
                         "repeatable")
+    p.add_argument("--doublet", metavar="DEG", type=float, default=0.0,
+                   help="add an elevator doublet of DEG degrees (+DEG for 0.5 s, then -DEG for 0.5 s, "
+                   "every 10 s from 5 s) to the autopilot's output: excitation for `fdir identify` "
+                   "(default 0: none)")
     p.add_argument("--quiet", action="store_true", help="no summary line")
     p.set_defaults(func=run)
     return p
@@ -193,6 +197,7 @@ class _Flight:
 
     def __init__(self, args: argparse.Namespace, scenario, key: bytes | None) -> None:
         from fdir_service.daemon import open_link
+        from sim_bridge.autopilot import ElevatorDoublet
         from sim_bridge.mavlink_bridge import AutopilotLink, LossyLink
         from sim_bridge.simulate import SimStepper, default_autopilot
 
@@ -201,6 +206,7 @@ class _Flight:
         self.stepper = SimStepper(scenario, args.seed)
         self.ap = default_autopilot(scenario, self.stepper.airframe)
         self.ap.reset()
+        self.doublet = ElevatorDoublet(math.radians(getattr(args, "doublet", 0.0)))
         signing_ts = int((time.time() - 1420070400) * 1e5) if key else 0
         self.link = AutopilotLink(scenario, key=key, signing_timestamp=signing_ts,
                                   profile=getattr(args, "profile", "native"),
@@ -275,6 +281,7 @@ class _Flight:
         self._send(self.link.sensor_messages(fr.t, fr.y, fr.mask, fr.static_pressure_pa))
         z_est = self._estimate(k, int(round(fr.t * 1000)))
         u = self.ap.update(fr.t, fr.autopilot_view(self._nav_state(k, fr.z_true, z_est)))
+        u = self.doublet.add(fr.t, u)
         self._send(self.link.actuator_messages(fr.t, u))
         self.u_hist.append(np.asarray(u, dtype=float).copy())
         if self.truth is not None:

@@ -8,15 +8,16 @@ import pytest
 
 from fdir_service.airframe.params import AirframeParams, load_airframe
 from fdir_service.cli import main
-from fdir_service.identification import FlightFrames, _combined, identify
+from fdir_service.identification import FlightFrames, _combined, _fit_moment, _moment_rows, _usable, identify
 
 ROWS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q", "ax", "az", "airspeed")
 
 
-def _frames(truth: AirframeParams, K: int = 4000, excite: float = 1.0, seed: int = 0) -> FlightFrames:
+def _frames(truth: AirframeParams, K: int = 4000, excite: float = 1.0, seed: int = 0,
+            az_noise: float = 0.0) -> FlightFrames:
     """Frames of a flight that obeys `truth`'s pitch balance exactly: angle of attack, pitch rate and
     airspeed vary (by `excite`), the elevator is what balances them, the accelerometer reads the
-    lift, w = V sin(alpha)."""
+    lift (plus white noise of std az_noise, m/s^2), w = V sin(alpha)."""
     rng = np.random.default_rng(seed)
     dt, p = 0.05, truth
     t = dt * np.arange(K)
@@ -32,7 +33,7 @@ def _frames(truth: AirframeParams, K: int = 4000, excite: float = 1.0, seed: int
     y = np.zeros((K, len(ROWS)))
     y[:, ROWS.index("w")] = V * np.sin(alpha)
     y[:, ROWS.index("q")] = q + 1e-5 * rng.standard_normal(K)
-    y[:, ROWS.index("az")] = -CL * qbar_S / p.m
+    y[:, ROWS.index("az")] = -CL * qbar_S / p.m + az_noise * rng.standard_normal(K)
     y[:, ROWS.index("airspeed")] = V
     u = np.column_stack([de, np.full(K, 0.5)])
     return FlightFrames(ROWS, t, y, np.ones_like(y, dtype=bool), u)
@@ -81,3 +82,44 @@ def test_identify_names_the_missing_rows_of_a_log_without_them(tmp_path, capsys)
     assert main(["identify", str(legacy), "--out", str(tmp_path / "a.toml")]) == 1
     err = capsys.readouterr().err
     assert "fdir identify:" in err and not (tmp_path / "a.toml").exists()
+
+
+def test_the_accelerometers_noise_does_not_shrink_the_slopes():
+    """Noise in C_L (0.5 m/s^2 on a_z: ~0.02 in C_L) shrinks least-squares slopes towards zero; the
+    instruments (the interval before) do not share it."""
+    base = load_airframe("aerosonde")
+    truth = AirframeParams(C_m0=-0.035, C_ma=-0.45, C_mde=-0.42)
+    ident = identify(_frames(truth, K=6000, az_noise=0.5), base)
+    fit, want = _combined(ident.params), _combined(truth)
+    assert fit[1] == pytest.approx(want[1], rel=0.1)          # C_ma / C_La
+    assert fit[3] == pytest.approx(want[3], rel=0.1)          # the elevator's C_mde'
+    A, b, _ = _moment_rows(_usable(_frames(truth, K=6000, az_noise=0.5)), np.arange(2, 6000), base)
+    plain = np.linalg.lstsq(A, b, rcond=None)[0]               # what plain least squares gives
+    assert abs(plain[1]) < 0.8 * abs(want[1])
+
+
+def test_a_slope_fitted_with_the_wrong_sign_is_kept_at_the_files():
+    """A positive pitch damping is no physics the monitor can use (JSBSim's rotational gusts fitted
+    C_mq = +12): the file's C_mq is kept and the other slopes refitted without it."""
+    rng = np.random.default_rng(1)
+    A = np.column_stack([np.ones(3000), rng.normal(0.4, 0.05, 3000), rng.normal(0, 0.01, 3000),
+                         rng.normal(0, 0.02, 3000)])
+    prior = np.array([0.0, -0.1, -3.6, -0.5])
+    b = A @ np.array([0.01, -0.12, 8.0, -0.45]) + 1e-4 * rng.standard_normal(3000)
+    a, std, kept = _fit_moment(A, A, b, prior, noise_std=1e-4)
+    assert kept == [2] and a[2] == pytest.approx(-3.6) and std[2] < 1e-6
+    assert a[1] == pytest.approx(-0.12, rel=0.25) and a[3] == pytest.approx(-0.45, rel=0.25)
+    free, _, none = _fit_moment(A, A, b - A[:, 2] * 11.6, prior, noise_std=1e-4)   # C_mq = -3.6: fitted
+    assert none == [] and free[2] == pytest.approx(-3.6, rel=0.02)
+
+
+def test_moment_rows_are_frame_intervals_with_the_held_elevator():
+    """Row k: q' over (k-1, k], C_L, q, V at the midpoint, the elevator of frame k's input."""
+    p = load_airframe("aerosonde")
+    f = _frames(AirframeParams(), K=300)
+    s = _usable(f)
+    A, b, K = _moment_rows(s, np.array([10]), p)
+    q = f.column("q")
+    assert b[0] * K[0] == pytest.approx((q[10] - q[9]) / 0.05)
+    assert A[0, 3] == f.u[10, 0]
+    assert A[0, 2] == pytest.approx(0.5 * (q[9] + q[10]) * p.c / (2 * 40.0), rel=0.06)

@@ -88,3 +88,18 @@ def test_altitude_command_schedule_and_printed_model():
         500.0, 500.0, 520.0, 520.0, 450.0, 450.0]
     with pytest.raises(ValueError):
         Autopilot(printed_model(load_airframe()), cmd, 0.02)
+
+
+def test_elevator_doublet_adds_plus_then_minus_every_period_within_travel():
+    import math
+
+    from sim_bridge.autopilot import ELEVATOR_LIMIT_RAD, ElevatorDoublet
+
+    d = ElevatorDoublet(math.radians(3.0))              # +3 deg 5.0-5.5 s, -3 deg 5.5-6.0 s, every 10 s
+    got = [math.degrees(d.offset(t)) for t in (0.0, 4.95, 5.0, 5.45, 5.5, 5.95, 6.0, 15.2, 15.7, 16.1)]
+    assert got == pytest.approx([0, 0, 3, 3, -3, -3, 0, 3, -3, 0])
+    u = d.add(5.2, np.array([ELEVATOR_LIMIT_RAD - 0.01, 0.5]))
+    assert u[0] == ELEVATOR_LIMIT_RAD and u[1] == 0.5     # clipped to the travel, throttle untouched
+    assert ElevatorDoublet(0.0).add(5.2, np.array([0.1, 0.5]))[0] == 0.1
+    with pytest.raises(ValueError, match="--doublet"):
+        ElevatorDoublet(math.radians(45.0))
