@@ -17,8 +17,11 @@ back-calculation with gain K_aw = 2 (1/s): x_h also integrates K_aw (gamma_sat -
 g_h = d gamma_raw / d x_h, so the unsaturated command relaxes to the limit with a 0.5 s time
 constant while saturated.
 
-Actuator limits: delta_e in +-30 deg, delta_t in [0, 1]. While an actuator sits on its limit the
-inner integrators are frozen (conditional integration).
+Actuator limits: delta_e in +-30 deg, delta_t in [0, 1]. Conditional integration: while an actuator
+sits on its limit, an inner integrator is held when its step would push that actuator further past
+the limit (through its column of K), and integrates otherwise. (Holding both whenever either
+actuator saturated locked the loop in a dive: an overspeed held the throttle at 0, and the frozen
+flight-path integrator then ignored a climb command all the way to the ground, real-jsbsim run 78.)
 
 Speed: the gains of a design model are computed once per process (`design_gains` is cached by
 the model's F, B, trim and dt), and `update` runs on Python floats (no per-step numpy calls).
@@ -180,11 +183,33 @@ class Autopilot:
         self.saturated = s0 != u0 or s1 != u1          # NaN counts as saturated, as in numpy
         # Integrators (forward Euler, as in the design model).
         self.x_h = xh + self.dt * (e_pd + ANTI_WINDUP_GAIN * (gamma_c - self.gamma_raw) / self._g_h)
+        dxg, dxv = self.dt * (gamma_c - gamma), self.dt * (self._va_c - va)
         if not self.saturated:
-            self.x_gamma = xg + self.dt * (gamma_c - gamma)
-            self.x_v = xv + self.dt * (self._va_c - va)
+            self.x_gamma = xg + dxg
+            self.x_v = xv + dxv
+        else:
+            over = (_past_limit(u0, s0), _past_limit(u1, s1))
+            if not _deepens(over, k0[4] * dxg, k1[4] * dxg):
+                self.x_gamma = xg + dxg
+            if not _deepens(over, k0[5] * dxv, k1[5] * dxv):
+                self.x_v = xv + dxv
         self.u = np.array([s0, s1])
         return np.array([s0, s1])
+
+
+def _past_limit(u: float, sat: float) -> int:
+    """+1 if the unsaturated command u is above its limit sat, -1 if below, 0 if within (NaN: +1)."""
+    if u == sat:
+        return 0
+    return -1 if u < sat else 1
+
+
+def _deepens(over: tuple[int, int], k_e: float, k_t: float) -> bool:
+    """True if an integrator step whose K entries times the step are k_e, k_t (the actuators move by
+    -k_e, -k_t) pushes a saturated actuator further past its limit; True for a NaN step (held)."""
+    if math.isnan(k_e) or math.isnan(k_t):
+        return True
+    return (over[0] != 0 and -k_e * over[0] > 0) or (over[1] != 0 and -k_t * over[1] > 0)
 
 
 def _clip(x: float, lo: float, hi: float) -> float:

@@ -103,3 +103,25 @@ def test_elevator_doublet_adds_plus_then_minus_every_period_within_travel():
     assert ElevatorDoublet(0.0).add(5.2, np.array([0.1, 0.5]))[0] == 0.1
     with pytest.raises(ValueError, match="--doublet"):
         ElevatorDoublet(math.radians(45.0))
+
+
+def test_a_saturated_throttle_holds_only_the_integrator_that_would_deepen_it():
+    """Overspeed below the commanded altitude: the throttle sits at 0. The airspeed integrator,
+    whose step would push the throttle further below 0, is held; the flight-path integrator, whose
+    climb step raises the throttle, still integrates (holding both locked real-jsbsim run 78 in a
+    dive to the ground)."""
+    sc = load_scenario("real-calm")
+    ap = default_autopilot(sc, load_airframe("aerosonde"))
+    ap.reset()
+    z = ap.model.trim.z.copy()
+    z[0] = -450.0                   # 50 m below the 500 m command
+    z[1] += 10.0                    # 10 m/s too fast
+    u = ap.update(0.0, z)
+    assert u[1] == 0.0 and ap.saturated
+    assert ap.x_v == 0.0            # held
+    assert ap.x_gamma > 0.0         # integrates the climb command
+    ap.reset()
+    z[1] = ap.model.trim.z[1] + 1.0  # 1 m/s fast on altitude: nothing saturates, both integrate
+    z[0] = -500.0
+    ap.update(0.0, z)
+    assert not ap.saturated and ap.x_v != 0.0
