@@ -20,7 +20,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         description="Read a recording of `fdir run` (LOG.mcap) made with an estimator whose rows include "
         "w, q, az and airspeed (config/estimators/aerosonde-robust.toml), assemble its frames as the "
         "service did, and fit the lift curve and the pitching-moment balance of the starting airframe "
-        "by equation-error least squares (the file's values as a prior). Prints the fit quality and "
+        "by equation-error least squares over each frame interval, with instrumental variables against "
+        "the accelerometer's noise and the file's values as a prior; a slope fitted with the wrong sign "
+        "keeps the file's value. Elevator doublets help (`sim-bridge fly --doublet 3`). Prints the fit "
+        "quality and "
         "writes an airframe file for `fdir run --estimator` (via the estimator's `airframe` key) or an "
         "experiment's [estimator] airframe. The flight must be fault-free: a fault is fitted as airframe.")
     p.add_argument("log", metavar="LOG.mcap", help="a recording of `fdir run` of a fault-free flight")
