@@ -249,3 +249,18 @@ class ElevatorDoublet:
         out = np.array(u, dtype=float)
         out[0] = _clip(out[0] + self.offset(t), -ELEVATOR_LIMIT_RAD, ELEVATOR_LIMIT_RAD)
         return out
+
+
+class ExcitedAutopilot:
+    """An autopilot with an `ElevatorDoublet` added to its output (`sim-bridge fly --doublet`);
+    everything else is the autopilot's own."""
+
+    def __init__(self, autopilot: Autopilot, doublet: ElevatorDoublet) -> None:
+        self.autopilot, self.doublet = autopilot, doublet
+
+    def __getattr__(self, name: str):
+        return getattr(self.autopilot, name)
+
+    def update(self, t: float, z_nav: np.ndarray) -> np.ndarray:
+        """The autopilot's input u (2,) for z_nav at time t (s), the doublet added to its elevator."""
+        return self.doublet.add(t, self.autopilot.update(t, z_nav))

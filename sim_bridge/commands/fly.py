@@ -197,16 +197,16 @@ class _Flight:
 
     def __init__(self, args: argparse.Namespace, scenario, key: bytes | None) -> None:
         from fdir_service.daemon import open_link
-        from sim_bridge.autopilot import ElevatorDoublet
+        from sim_bridge.autopilot import ElevatorDoublet, ExcitedAutopilot
         from sim_bridge.mavlink_bridge import AutopilotLink, LossyLink
         from sim_bridge.simulate import SimStepper, default_autopilot
 
         self.args, self.scenario, self.dt = args, scenario, scenario.dt_s
         self.lossy = LossyLink(args.loss, args.seed)
         self.stepper = SimStepper(scenario, args.seed)
-        self.ap = default_autopilot(scenario, self.stepper.airframe)
+        doublet = ElevatorDoublet(math.radians(getattr(args, "doublet", 0.0)))
+        self.ap = ExcitedAutopilot(default_autopilot(scenario, self.stepper.airframe), doublet)
         self.ap.reset()
-        self.doublet = ElevatorDoublet(math.radians(getattr(args, "doublet", 0.0)))
         signing_ts = int((time.time() - 1420070400) * 1e5) if key else 0
         self.link = AutopilotLink(scenario, key=key, signing_timestamp=signing_ts,
                                   profile=getattr(args, "profile", "native"),
@@ -281,7 +281,6 @@ class _Flight:
         self._send(self.link.sensor_messages(fr.t, fr.y, fr.mask, fr.static_pressure_pa))
         z_est = self._estimate(k, int(round(fr.t * 1000)))
         u = self.ap.update(fr.t, fr.autopilot_view(self._nav_state(k, fr.z_true, z_est)))
-        u = self.doublet.add(fr.t, u)
         self._send(self.link.actuator_messages(fr.t, u))
         self.u_hist.append(np.asarray(u, dtype=float).copy())
         if self.truth is not None:

@@ -12,29 +12,17 @@ import pytest
 
 from fdir_service.airframe.params import load_airframe
 from fdir_service.identification import FlightFrames, _combined, _intervals, _moment_rows, _usable, identify
-from sim_bridge.autopilot import ElevatorDoublet
+from sim_bridge.autopilot import ElevatorDoublet, ExcitedAutopilot
 from sim_bridge.scenario import load_scenario
 from sim_bridge.simulate import default_autopilot, run
-
-
-class _Excited:
-    """The scenario's autopilot with an elevator doublet added to its output."""
-
-    def __init__(self, autopilot, doublet: ElevatorDoublet) -> None:
-        self.autopilot, self.doublet = autopilot, doublet
-
-    def __getattr__(self, name):
-        return getattr(self.autopilot, name)
-
-    def update(self, t, z_nav):
-        return self.doublet.add(t, self.autopilot.update(t, z_nav))
 
 
 @pytest.fixture(scope="module")
 def flight() -> FlightFrames:
     sc = load_scenario("real-turbulence-faultfree")
     sc = dataclasses.replace(sc, duration_s=150.0)
-    ap = _Excited(default_autopilot(sc, load_airframe(sc.truth.airframe)), ElevatorDoublet(math.radians(3.0)))
+    ap = ExcitedAutopilot(default_autopilot(sc, load_airframe(sc.truth.airframe)),
+                          ElevatorDoublet(math.radians(3.0)))
     tr = run(sc, seed=3, autopilot=ap)
     u = np.vstack([tr.u[:1], tr.u[:-1]])             # frame k's input: u_{k-1}, as the service's
     return FlightFrames(tuple(sc.sensors.measurements), tr.t, tr.y, tr.mask, u)

@@ -86,7 +86,7 @@ def test_identify_names_the_missing_rows_of_a_log_without_them(tmp_path, capsys)
 
 def test_the_accelerometers_noise_does_not_shrink_the_slopes():
     """Noise in C_L (0.5 m/s^2 on a_z: ~0.02 in C_L) shrinks least-squares slopes towards zero; the
-    instruments (the interval before) do not share it."""
+    instruments (the intervals two and three frames back) do not share it."""
     base = load_airframe("aerosonde")
     truth = AirframeParams(C_m0=-0.035, C_ma=-0.45, C_mde=-0.42)
     ident = identify(_frames(truth, K=6000, az_noise=0.5), base)
