@@ -41,7 +41,12 @@ IMU_ROWS = ("ax", "az")
 model takes them as inputs (parts.process_model = "kinematic"); no filter observes them."""
 AIR_ROWS = ("airspeed",)
 """The pitot's airspeed (m/s): an input of the kinematic model's pitching moment (dynamic pressure)."""
-INPUT_ROWS = IMU_ROWS + AIR_ROWS
+LATERAL_ROWS = ("roll", "v")
+"""The lateral motion the longitudinal state leaves out: the roll attitude (rad) and the body-axis
+velocity along y over the ground (m/s). The kinematic model's climb rate takes them (an aircraft
+that banks and sideslips climbs at u sin(theta) - (v sin(phi) + w cos(phi)) cos(theta)); missing,
+they are 0 (wings level, no sideslip)."""
+INPUT_ROWS = IMU_ROWS + AIR_ROWS + LATERAL_ROWS
 """Rows a process model takes as inputs, in the order they extend the input vector."""
 THRUST_ROW = "throttle"
 """A derived row (`thrust.ThrustCheck`): the throttle the accelerometer implies minus the commanded

@@ -31,8 +31,15 @@ GM_TIME_CONSTANT_S = 1100.0
 GM_SAMPLE_S = 1.0
 
 _STATE_ROW = {"gnss_alt": 0, "baro_alt": 0, "u": 1, "w": 2, "theta": 3, "q": 4}
-AIR_ROWS = ("airspeed", "ax", "az")
-"""Rows measured from the truth's air data, not from z."""
+AIR_ROWS = ("airspeed", "ax", "az", "roll", "v")
+"""Rows measured from the truth's air data (`world.AirData`), not from z."""
+
+
+def _air_value(air, i: int) -> float:
+    """The clean reading of air row AIR_ROWS[i] from the truth's `AirData`."""
+    if i == 0:
+        return air.airspeed_mps
+    return air.specific_force[i - 1] if i < 3 else air.lateral[i - 3]
 
 
 class SensorSuite:
@@ -105,7 +112,7 @@ class SensorSuite:
             self.typed.scale_noise(noise, fault_values, active)
         y = self.H @ z_true + self.S @ fault_values + noise
         for r, i in self.air_rows:
-            y[r] += air.airspeed_mps if i == 0 else air.specific_force[i - 1]
+            y[r] += _air_value(air, i)
         if self.gauss_markov:
             self._advance_gauss_markov(t)
             y[self.gnss_row] += self.gnss_error_m
@@ -125,7 +132,7 @@ class SensorSuite:
         """(m,) the noise-free, fault-free reading of every row: H z_true, air data on air rows."""
         y = self.H @ np.asarray(z_true, dtype=float)
         for r, i in self.air_rows:
-            y[r] += air.airspeed_mps if i == 0 else air.specific_force[i - 1]
+            y[r] += _air_value(air, i)
         return y
 
     def _realism(self, y: np.ndarray, z_true: np.ndarray, t: float) -> None:

@@ -60,7 +60,7 @@ from fdir_service.estimation.recipes import Recipe, recipe
 from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter, h_opt
 from fdir_service.estimation.resample import BelowEffectiveSize, EveryStep, resampler
 from fdir_service.estimation.sentinels import PriorSentinels, ThesisSentinels, prior_log_constants
-from fdir_service.estimator_config import EstimatorConfig
+from fdir_service.estimator_config import LATERAL_ROWS, EstimatorConfig
 
 FAULT_THRESHOLD_SIGMAS = 3.0
 """Mode-free filters (KF, RPF, RRPF, bootstrap) report P(|f_j| > 3 sigma_j), sigma_j the fault's
@@ -152,7 +152,11 @@ def build_imm(scenario: EstimatorConfig, x0: np.ndarray | None = None,
 def _process(estimator: EstimatorConfig, layout: FaultLayout):
     if estimator.settings.process_model == "kinematic":
         moment = PitchMoment(_airframe(estimator.airframe)) if "airspeed" in estimator.measurements else None
-        return KinematicProcess(estimator.dt_s, layout, moment, estimator.operating_point.airspeed_mps)
+        inputs = estimator.input_rows
+        lateral = tuple(2 + inputs.index(r) for r in LATERAL_ROWS) \
+            if all(r in inputs for r in LATERAL_ROWS) else None
+        return KinematicProcess(estimator.dt_s, layout, moment, estimator.operating_point.airspeed_mps,
+                                lateral)
     lm = estimator_linear_model(estimator)
     if estimator.settings.process_model == "linear":
         return LinearProcess(lm, layout)

@@ -1,7 +1,8 @@
 """The estimator's rows split into what a filter observes and what it takes as input.
 
 An estimator may list input rows (`estimator_config.INPUT_ROWS`): the accelerometer (ax, az,
-body-axis specific force, m/s^2) and the pitot's airspeed (m/s). No filter observes them: a
+body-axis specific force, m/s^2), the pitot's airspeed (m/s), the roll attitude (rad) and the
+body-y velocity (m/s). No filter observes them: a
 kinematic process model integrates the accelerometer like an input (SPEC section 2's velocity
 equations with the aerodynamic forces replaced by the measured ones) and takes the dynamic pressure
 of its pitching moment from the airspeed. `RowSplit.split(y, mask, u)` turns a frame over all rows
@@ -31,7 +32,8 @@ def trim_specific_force(z_trim: np.ndarray) -> np.ndarray:
 def trim_inputs(z_trim: np.ndarray) -> dict[str, float]:
     """Each input row's value in steady flight in still air at z_trim (5,)."""
     ax, az = trim_specific_force(z_trim)
-    return {"ax": float(ax), "az": float(az), "airspeed": float(np.hypot(z_trim[1], z_trim[2]))}
+    return {"ax": float(ax), "az": float(az), "airspeed": float(np.hypot(z_trim[1], z_trim[2])),
+            "roll": 0.0, "v": 0.0}
 
 
 class RowSplit:
@@ -83,10 +85,11 @@ class RowSplit:
         u = np.asarray(u, dtype=float)[:2]
         y_obs, mask_obs = y[self.observed], mask[self.observed]
         held = self.hold
-        if self.pitot is not None:              # hold = [ax, az, airspeed]: the trusted airspeed
-            held = np.array([held[0], held[1], self.pitot.trusted(held[2])])
+        if self.pitot is not None:              # hold = [ax, az, airspeed, ...]: the trusted airspeed
+            held = held.copy()
+            held[2] = self.pitot.trusted(held[2])
         if self.thrust is not None:             # the derived throttle row
-            ax, az, V = held
+            ax, az, V = held[:3]
             y_obs = np.append(y_obs, self.thrust.implied_throttle(ax, az, V, u[0]) - u[1])
             mask_obs = np.append(mask_obs, bool(fresh[0]))
         if self.pitot is not None:              # the derived airspeed row: the pitot's own reading

@@ -153,9 +153,9 @@ def test_the_catalogue_estimator_runs_one_step_with_every_type_and_reports_them(
     est = load_estimator("aerosonde-catalogue")
     filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=200)
     m = len(est.measurements)
-    y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0])[:m]
+    y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0, 0.0, 0.0])[:m]
     out = filt.step(0.05, y, np.ones(m, dtype=bool), np.array([-0.03, 0.5]))
-    assert set(out.fault_types) == {"bias", "stuck", "noisy", "jammed", "effectiveness", "blocked"}
+    assert set(out.fault_types) == {"bias", "stuck", "noisy", "drift", "jammed", "effectiveness", "blocked"}
     assert np.isfinite(out.fault_value).all()
 
 
@@ -216,7 +216,7 @@ def test_the_adaptive_filters_publish_pfa_and_pmd_for_noisy_faults():
     est = load_estimator("aerosonde-catalogue")
     filt = build_filter("ARJMRPF", est, np.random.default_rng(0), particles=200)
     m = len(est.measurements)
-    y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0])[:m]
+    y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0, 0.0, 0.0])[:m]
     for k in range(4):
         out = filt.step(0.05 * (k + 1), y, np.ones(m, dtype=bool), np.array([-0.08, 0.5]))
     nz = [f.id for f in est.faults].index("baro_nz")

@@ -175,8 +175,8 @@ def test_the_catalogue_filter_watches_the_pitot_and_steps():
     filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=200,
                         x0=np.array([-500.0, 32.0, 1.5, 0.05, 0.0]))     # as the first frame starts it
     assert filt.wind is filt.rows.pitot and filt.wind.wind == wind_entry(est.faults)
-    y = np.array([500.0, 500.0, 32.0, 1.5, 0.05, 0.0, 0.49, -9.78, 40.0])
-    out = filt.step(0.05, y, np.ones(9, dtype=bool), np.array([-0.02, 0.5]))
+    y = np.array([500.0, 500.0, 32.0, 1.5, 0.05, 0.0, 0.49, -9.78, 40.0, 0.0, 0.0])
+    out = filt.step(0.05, y, np.ones(11, dtype=bool), np.array([-0.02, 0.5]))
     j = wind_entry(est.faults)
     assert abs(out.x_mean[N_AIRFRAME + j] - 8.0) < 1.0                     # the head wind, 40 - 32
 
@@ -214,7 +214,7 @@ def test_the_pitot_is_read_near_level_flight_only():
     est = load_estimator("aerosonde-catalogue")
     filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=50)
     rows = est.measurements
-    y = np.array([500.0, 500.0, 32.0, 1.5, 0.05, 0.0, 0.49, -9.78, 40.0])
+    y = np.array([500.0, 500.0, 32.0, 1.5, 0.05, 0.0, 0.49, -9.78, 40.0, 0.0, 0.0])
     mask = np.ones(len(rows), dtype=bool)
     assert filt.rows.split(y, mask, np.array([-0.02, 0.5]))[1][-1]
     y[rows.index("theta")] = np.radians(40.0)

@@ -74,7 +74,7 @@ def test_row_split_takes_the_accelerometer_out_of_the_rows_and_holds_it(robust):
     mask = np.ones(len(rows), dtype=bool)
     yo, mo, u = split.split(y, mask, np.array([0.1, 0.6]))
     assert list(yo) == [rows.index(r) for r in robust.observed]
-    assert mo.all() and list(u) == [0.1, 0.6, rows.index("ax"), rows.index("az"), rows.index("airspeed")]
+    assert mo.all() and list(u) == [0.1, 0.6] + [rows.index(r) for r in ("ax", "az", "airspeed", "roll", "v")]
     mask[rows.index("az")] = False                      # no new az: the last one is held
     y2 = y + 100.0
     _, _, u2 = split.split(y2, mask, np.array([0.1, 0.6]))
@@ -90,7 +90,7 @@ def test_row_split_drops_the_accelerometer_for_filters_that_do_not_integrate_it(
 
 def test_row_split_starts_on_the_trim_specific_force(robust):
     split = RowSplit.of(robust, True, np.array([-500.0, 40.0, 2.0, 0.05, 0.0]))
-    np.testing.assert_allclose(split.hold, [G * np.sin(0.05), -G * np.cos(0.05), np.hypot(40.0, 2.0)])
+    np.testing.assert_allclose(split.hold, [G * np.sin(0.05), -G * np.cos(0.05), np.hypot(40.0, 2.0), 0.0, 0.0])
 
 
 class Still:
@@ -124,7 +124,7 @@ def test_robust_estimator_builds_a_kinematic_filter_with_drift(robust):
     assert isinstance(f.parts.predict, DriftPredict)
     assert f.meas.names == robust.observed and "ax" not in f.meas.names
     rows = len(robust.measurements)
-    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79, 40.0])
+    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79, 40.0, 0.0, 0.0])
     out = f.step(0.05, y, np.ones(rows, bool), np.array([-0.08, 0.5]))
     assert np.isfinite(out.x_mean).all() and out.fault_probability.max() < 0.5
 
@@ -132,8 +132,8 @@ def test_robust_estimator_builds_a_kinematic_filter_with_drift(robust):
 @pytest.mark.parametrize("name", ["KF", "IMM-KF", "EKF-GATE", "RPF"])
 def test_every_filter_runs_on_an_estimator_with_accelerometer_rows(robust, name):
     f = build_filter(name, robust, np.random.default_rng(0), particles=50)
-    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79, 40.0])
-    out = f.step(0.05, y, np.ones(9, bool), np.array([-0.08, 0.5]))
+    y = np.array([500.0, 500.0, 40.0, 2.0, 0.05, 0.0, 0.48, -9.79, 40.0, 0.0, 0.0])
+    out = f.step(0.05, y, np.ones(11, bool), np.array([-0.08, 0.5]))
     assert np.isfinite(out.x_mean).all() and np.isfinite(out.fault_probability).all()
 
 

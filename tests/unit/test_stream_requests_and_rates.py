@@ -38,7 +38,7 @@ def test_wanted_rates_default_to_the_frame_rate_and_5_hz_gnss():
     ardu = select_autopilot(CFG, "ardupilot")
     wanted = wanted_rates(ardu)
     assert "PARAM_VALUE" not in wanted and wanted["GPS_RAW_INT"] == 5.0 and wanted["VFR_HUD"] == 20.0
-    assert rows_by_message(ardu)["ATTITUDE"] == ("u", "w", "theta", "q")
+    assert rows_by_message(ardu)["ATTITUDE"] == ("u", "w", "theta", "q", "roll", "v")
     assert wanted["SYSTEM_TIME"] == 1.0                      # its GPS_RAW_INT is stamped "epoch"
     assert "SYSTEM_TIME" not in wanted_rates(select_autopilot(CFG, "px4"))
 
