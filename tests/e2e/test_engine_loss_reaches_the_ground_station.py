@@ -8,7 +8,8 @@ from fdir_service.mavlink import dialect, unpack_fault_types
 from tests.helpers.loopback import fly_into_service
 
 SECONDS = 45.0      # real-engine: the engine quits between 20 and 40 s
-SPEED = "5"         # x real time: at 20x the catalogue's ~2 ms step is 400 frames/s, more than a busy core gives
+SPEED = "5"         # x real time: at 20x the catalogue's ~2 ms step is 400 frames/s, more than a busy
+                    # core gives
 
 
 def test_an_engine_loss_is_announced_in_words_and_typed_on_the_estimate():

@@ -48,4 +48,5 @@ def test_the_robust_estimator_takes_roll_and_v_as_inputs_after_the_pitot():
 def test_the_world_measures_roll_and_v_from_the_truths_air_data():
     air = AirData(40.0, np.array([0.5, -9.8]), np.zeros(2), np.array([0.1, -1.5]))
     assert [_air_value(air, i) for i in range(5)] == [40.0, 0.5, -9.8, 0.1, -1.5]
-    assert list(AirData(40.0, np.zeros(2), np.zeros(2)).lateral) == [0.0, 0.0]   # the internal aircraft: level
+    level = AirData(40.0, np.zeros(2), np.zeros(2))            # the internal aircraft: wings level
+    assert list(level.lateral) == [0.0, 0.0]

@@ -90,7 +90,8 @@ def test_row_split_drops_the_accelerometer_for_filters_that_do_not_integrate_it(
 
 def test_row_split_starts_on_the_trim_specific_force(robust):
     split = RowSplit.of(robust, True, np.array([-500.0, 40.0, 2.0, 0.05, 0.0]))
-    np.testing.assert_allclose(split.hold, [G * np.sin(0.05), -G * np.cos(0.05), np.hypot(40.0, 2.0), 0.0, 0.0])
+    np.testing.assert_allclose(split.hold, [G * np.sin(0.05), -G * np.cos(0.05), np.hypot(40.0, 2.0),
+                                            0.0, 0.0])
 
 
 class Still:
