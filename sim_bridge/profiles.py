@@ -19,7 +19,8 @@ pressure) and the autopilot's command into MAVLink message objects; `AutopilotLi
 
 Clocks: the simulation time t (s) is the boot time (time_boot_ms = round(t * 1000), time_usec
 since boot = round(t * 1e6)), so the service's frames and FDIR_ESTIMATEs keep the simulator's
-frame times. The longitudinal simulation flies wings level, heading north (roll = yaw = 0).
+frame times. The internal simulation flies wings level, heading north (roll = yaw = 0); a world that
+measures the roll and the body-y velocity v (JSBSim's) sends them on ATTITUDE and in the NED velocity.
 """
 
 from __future__ import annotations
@@ -149,7 +150,8 @@ class NativeMessages:
         theta, q = v.get("theta"), v.get("q")
         if theta is None and q is None:
             return None
-        return dialect.MAVLink_attitude_message(int(round(t * 1000.0)), 0.0, _nan_if_none(theta),
+        roll = v.get("roll") or 0.0             # 0 unless the world measures it (wings level)
+        return dialect.MAVLink_attitude_message(int(round(t * 1000.0)), roll, _nan_if_none(theta),
                                                 0.0, 0.0, _nan_if_none(q), 0.0)
 
     @staticmethod
@@ -161,7 +163,7 @@ class NativeMessages:
         quat = [nan] * 4 if theta is None else [math.cos(theta / 2), 0.0, math.sin(theta / 2), 0.0]
         return dialect.MAVLink_odometry_message(
             int(round(t * 1e6)), dialect.MAV_FRAME_LOCAL_NED, dialect.MAV_FRAME_BODY_FRD, nan, nan, nan, quat,
-            _nan_if_none(u), nan, _nan_if_none(w), nan, nan, nan,
+            _nan_if_none(u), (v.get("v") or 0.0), _nan_if_none(w), nan, nan, nan,
             [nan] * 21, [nan] * 21, 0, dialect.MAV_ESTIMATOR_TYPE_NAIVE, 0)
 
     @staticmethod
@@ -276,11 +278,14 @@ class _StockAutopilot:
         return ()
 
     def _navigate(self, v: Values) -> None:
-        """NED velocity (m/s) from u, w and theta; the north position and altitude (m) updated."""
+        """NED velocity (m/s) from u, v, w, the roll and theta (heading north; v and the roll 0 when
+        not measured: wings level); the north position and altitude (m) updated."""
         u, w, theta = v.get("u"), v.get("w"), v.get("theta")
         if u is not None and w is not None:
-            th = 0.0 if theta is None else theta
-            self.ned = (u * math.cos(th) + w * math.sin(th), 0.0, -u * math.sin(th) + w * math.cos(th))
+            th, phi, vy = 0.0 if theta is None else theta, (v.get("roll") or 0.0), (v.get("v") or 0.0)
+            tilted = vy * math.sin(phi) + w * math.cos(phi)          # along body z rolled back to level
+            self.ned = (u * math.cos(th) + tilted * math.sin(th), vy * math.cos(phi) - w * math.sin(phi),
+                        -u * math.sin(th) + tilted * math.cos(th))
         self.north_m += self.ned[0] * self.dt
         alt = v.get("baro_alt")
         if alt is not None:
@@ -298,7 +303,7 @@ class _StockAutopilot:
 
     @staticmethod
     def _attitude(t: float, v: Values, static_pressure_pa: float):
-        """ATTITUDE: time_boot_ms; pitch rad, pitchspeed rad/s; roll = yaw = 0."""
+        """ATTITUDE: time_boot_ms; roll (0 unless measured) and pitch rad, pitchspeed rad/s; yaw 0."""
         return NativeMessages._attitude(t, v, static_pressure_pa)
 
     def _vfr_hud(self, t: float, v: Values, static_pressure_pa: float):

@@ -169,7 +169,7 @@ def test_requests_off_sends_nothing_and_says_so():
     for now in (1.0, 5.0, 30.0):
         rig.link.poll(now)
     assert rig.written == []
-    assert "FDIR no u,w: ODOMETRY not received (requests off)" in rig.statustexts()
+    assert "FDIR no u,w,v: ODOMETRY not received (requests off)" in rig.statustexts()
 
 
 def test_no_answer_is_retried_then_reported():

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from fdir_service.estimation.factory import build_filter
 from fdir_service.estimation.kinematic import KinematicProcess
@@ -50,3 +51,17 @@ def test_the_world_measures_roll_and_v_from_the_truths_air_data():
     assert [_air_value(air, i) for i in range(5)] == [40.0, 0.5, -9.8, 0.1, -1.5]
     level = AirData(40.0, np.zeros(2), np.zeros(2))            # the internal aircraft: wings level
     assert list(level.lateral) == [0.0, 0.0]
+
+
+def test_a_stock_autopilots_ned_velocity_of_a_banked_sideslipping_aircraft_derives_back_to_u_v_w():
+    from fdir_service.runtime.derived import ned_to_body
+    from sim_bridge.profiles import ArduPlaneMessages
+    from sim_bridge.scenario import load_scenario
+
+    ap = ArduPlaneMessages(load_scenario("real-jsbsim"))
+    values = {"u": 39.0, "v": -2.0, "w": 3.0, "theta": 0.05, "roll": 0.3, "baro_alt": 500.0}
+    ap._navigate(values)
+    assert ned_to_body(np.array(ap.ned), 0.3, 0.05, 0.0) == pytest.approx([39.0, -2.0, 3.0], abs=1e-12)
+    ap._navigate({"u": 39.0, "w": 3.0, "theta": 0.05, "baro_alt": 500.0})      # wings level, no v row
+    level = (39.0 * math.cos(0.05) + 3.0 * math.sin(0.05), 0.0, -39.0 * math.sin(0.05) + 3.0 * math.cos(0.05))
+    assert ap.ned == level                                                     # bit for bit as before
