@@ -14,8 +14,7 @@ with the roll attitude phi and the body-y velocity v as inputs too (`LATERAL_ROW
 the longitudinal climb rate was 0.05 m/s off on average, 6 m of altitude in two minutes that the
 barometer was blamed for; with phi and v the mean error is 0.000 m/s and its spread 0.027 instead of
 0.137 m/s (`docs/robustness.md`, "Banks and sideslip"). The velocity and attitude equations'
-lateral terms are left out: r v would take a 0.015 m/s^2 mean off u' (0.09 deg of pitch) but needs
-the yaw rate, and p v and r sin(phi) moved nothing measurable.
+lateral terms (r v, p v, r sin(phi)) are left out: they moved no residual's mean beyond its noise.
 
 u, w are the body-axis velocities over the ground (what GNSS-aided ODOMETRY reports), so wind and
 gusts appear only through the measured specific force: this model has nothing to mis-model in
