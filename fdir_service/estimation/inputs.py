@@ -2,10 +2,10 @@
 
 An estimator may list input rows (`estimator_config.INPUT_ROWS`): the accelerometer (ax, az,
 body-axis specific force, m/s^2), the pitot's airspeed (m/s), the roll attitude (rad) and the
-body-y velocity (m/s). No filter observes them: a
-kinematic process model integrates the accelerometer like an input (SPEC section 2's velocity
-equations with the aerodynamic forces replaced by the measured ones) and takes the dynamic pressure
-of its pitching moment from the airspeed. `RowSplit.split(y, mask, u)` turns a frame over all rows
+body-y velocity (m/s). No filter observes them: a kinematic process model integrates the
+accelerometer like an input (SPEC section 2's velocity equations with the aerodynamic forces
+replaced by the measured ones), takes the dynamic pressure of its pitching moment from the airspeed
+and the tilt of its climb rate from the roll and v. `RowSplit.split(y, mask, u)` turns a frame over all rows
 (m,) into the observed rows (m_obs,) and the input [delta_e, delta_t] (2,), extended by the input
 rows (+k, `INPUT_ROWS` order) when the process takes them. A sample that did not arrive holds the
 last one (before the first: the trim's specific force and airspeed).
