@@ -187,8 +187,9 @@ def _yardstick(camp: Campaign, fr: FilterRuns) -> dict | None:
         return None
     sc = camp.scenario
     ids, wids = [f.id for f in sc.estimator.faults], [f.id for f in sc.faults]
-    if not is_typed(sc.faults):                       # bias only: matched by id
+    if not (is_typed(sc.faults) or is_typed(sc.estimator.faults)):   # bias only: matched by id
         return yardstick(fr.t, fr.prob, ids, fr.world_faults, wids, world_active=fr.world_active)
+    # a typed world, or a typed estimator (its fault-free worlds too): by item, as the service declares
     strict, by_type = scenario_yardsticks(sc, fr.t, fr.prob, fr.f_hat, fr.world_faults, fr.sim_seeds)
     items = yardstick(fr.t, strict.pop("prob"), strict.pop("fault_ids"), fr.world_faults, wids, **strict)
     return {**items, "by_type": by_type}
