@@ -195,3 +195,17 @@ def test_a_declaration_whose_type_settles_within_2_s_is_right_2_s_later():
                                      np.where(_between(10.0, 20.0), 3.0, 0.0)[None, :, None], np.array([1]))
     st = by_type["types"]["stuck"]
     assert st["right_fraction"] == 0.0 and st["right_settled_fraction"] == 1.0
+
+
+def test_a_typed_estimators_fault_free_flight_is_scored_by_item_as_the_service_declares():
+    from sim_bridge.report import _yardstick
+
+    sc = _scenario()
+    sc.faults = ()                                             # a fault-free world
+    prob = np.zeros((1, T.size, len(ENTRIES)))
+    prob[0, _between(30.0, 40.0), 0] = 0.5                     # the barometer's bias and stuck entries
+    prob[0, _between(30.0, 40.0), 1] = 0.45                    # share P(item) = 0.95: one item declared
+    fr = SimpleNamespace(t=T, prob=prob, f_hat=np.zeros_like(prob), world_faults=np.zeros((1, T.size, 0)),
+                         world_active=None, sim_seeds=np.array([1]))
+    y = _yardstick(SimpleNamespace(scenario=sc), fr)
+    assert y["false_alarms"] == 1                              # per entry (0.5, 0.45) it was 0
