@@ -15,7 +15,6 @@ import argparse
 from multiprocessing import Pool
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
@@ -29,8 +28,7 @@ LOST_M = 100.0
 def false_declarations(world: str, run: int) -> tuple[int, np.ndarray, list[str], list[tuple[str, float]]]:
     """(run, max |state error| (5,), false declarations "item:type@t", [(fault id, onset s)])."""
     sc = load_scenario(world)
-    with threadpool_limits(limits=1, user_api="blas"):      # one BLAS thread per worker (campaign.py)
-        tr = fly(sc, "RJMRPF", run)
+    tr = fly(sc, "RJMRPF", run)                            # on one BLAS thread per worker
     P = np.array([o.fault_probability for o in tr.outputs])
     X = np.array([o.x_mean[:5] for o in tr.outputs])
     names = [f.id for f in sc.estimator.faults]

@@ -191,7 +191,8 @@ def _first_frame_start(sc: Scenario, new_filter):
 def fly(scenario: Scenario, name: str, run: int, seed: int = 0, seconds: float | None = None,
         particles: int | None = None):
     """Run `run` of a campaign (same world and filter streams) flown once with filter `name` as its
-    navigation: the `simulate.Trajectory`, whose `outputs` are the filter's StepOutputs."""
+    navigation, on one BLAS thread as `run_job`: the `simulate.Trajectory`, whose `outputs` are the
+    filter's StepOutputs."""
     def new_filter(x0=None):
         kw = {} if x0 is None else {"x0": x0}
         return build(name, scenario, filter_rng(seed, run, name), particles, **kw)
@@ -199,7 +200,8 @@ def fly(scenario: Scenario, name: str, run: int, seed: int = 0, seconds: float |
     nav = _TimedNav(new_filter(), scenario.dt_s, scenario.estimator_rows(),
                     _first_frame_start(scenario, new_filter), len(scenario.sensors.measurements))
     from sim_bridge.simulate import run as fly_closed_loop
-    return fly_closed_loop(scenario, sim_seed(seed, run), seconds=seconds, nav=nav)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return fly_closed_loop(scenario, sim_seed(seed, run), seconds=seconds, nav=nav)
 
 
 def _run_job(job: Job) -> RunResult:
