@@ -162,10 +162,11 @@ class FilterSettings:
     rate_window_s: float = 1.0           # the window of rate_sentinel = "window" (s)
     thrust_sigma: float = 0.01           # noise of the derived throttle row (0..1 throttle scale)
     q_tail: tuple[float, ...] = (0.0, 1.0)  # (share, scale): heavy-tailed pitch-rate process noise
-    wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.GustWind) ...
+    wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.PitotRow) ...
     wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
     wind_hold: float = 0.0               # 0..1: the share of a ground-speed change that is the wind's
+    held_airspeed_sigma: float = 0.5     # m/s: the airspeed's gusts an airspeed hold lets through
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -398,6 +399,8 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         wind_gust_tau_s=f.take("wind_gust_tau_s", "number", d.wind_gust_tau_s, check=POSITIVE),
         wind_mean_tau_s=f.take("wind_mean_tau_s", "number", d.wind_mean_tau_s, check=POSITIVE),
         wind_hold=f.take("wind_hold", "number", d.wind_hold, check=UNIT_INTERVAL),
+        held_airspeed_sigma=f.take("held_airspeed_sigma", "number", d.held_airspeed_sigma,
+                                   check=NON_NEGATIVE),
         imm=_imm(f, faults), gating=_gating(f), **words)
     f.finish()
     return s
@@ -447,8 +450,8 @@ def _check_pitot(settings: FilterSettings, faults: tuple[FaultSpec, ...], rows: 
     drifting = [f.id for f in faults if f.target == AIRSPEED_ROW and f.drift_sigma > 0]
     if drifting:
         raise ConfigError(f"faults {drifting}: the pitot's fault-free motion is the wind's "
-                          f"(parts.wind_gust_sigma, wind_gust_tau_s, wind_mean_tau_s); expected no "
-                          f"drift_sigma on an airspeed fault")
+                          f"(parts.wind_gust_sigma, held_airspeed_sigma, wind_gust_tau_s, "
+                          f"wind_mean_tau_s); expected no drift_sigma on an airspeed fault")
     if pitot and not (settings.process_model == "kinematic" and set(IMU_ROWS) <= set(rows)):
         raise ConfigError(f"faults {pitot} watch the pitot, which only the kinematic model observes "
                           f"(against its ground speed): expected parts.process_model = \"kinematic\" "

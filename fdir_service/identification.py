@@ -36,6 +36,10 @@ keep this fit honest on a real flight (`_moment_rows`, `_fit_moment`):
   is not physics the monitor can use: it is kept at the file's value, and the others refitted.
 
 Mass, inertia and geometry are the file's. Units SI (rad, m/s, s).
+
+It also prints what the autopilot's airspeed hold lets through (`airspeed_spread`): the pitot's
+spread about its minute mean beyond its noise, the floor for a pitot-watching estimator's
+`[parts] held_airspeed_sigma` (docs/faults.md, "The pitot and the wind").
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.linalg import lstsq
+from scipy.ndimage import uniform_filter1d
 
 from fdir_service.airframe.params import AirframeParams
 from fdir_service.errors import ConfigError
@@ -105,6 +110,8 @@ class Identification:
     moment_residual_std: float        # RMS residual of q' (rad/s^2)
     moment_r2: float
     moment_residual_std_before: float  # RMS q' residual of the file's airframe (rad/s^2)
+    airspeed_spread: float = float("nan")  # m/s: the airspeed's RMS about its minute mean, noise removed
+    airspeed_noise: float = float("nan")   # m/s: the pitot's noise, from successive readings
 
     def report(self) -> str:
         """A table of the coefficients and the fit quality, for the terminal."""
@@ -112,8 +119,12 @@ class Identification:
                  f"lift C_L:  residual RMS {self.lift_residual_std:.4f}, R^2 {self.lift_r2:.3f}"
                  + ("" if self.lift_r2 >= LIFT_MIN_R2 else f" (< {LIFT_MIN_R2}: the file's lift curve kept)"),
                  f"pitch q':  residual RMS {self.moment_residual_std:.3f} rad/s^2 (file's airframe: "
-                 f"{self.moment_residual_std_before:.3f}), R^2 {self.moment_r2:.3f}",
-                 f"{'coefficient':<12}{'file':>10}{'fitted':>10}{'+- std':>10}"]
+                 f"{self.moment_residual_std_before:.3f}), R^2 {self.moment_r2:.3f}"]
+        if math.isfinite(self.airspeed_spread):
+            lines.append(f"airspeed:  {self.airspeed_spread:.2f} m/s RMS about its {HOLD_MEAN_S:.0f} s mean "
+                         f"beyond the pitot's noise ({self.airspeed_noise:.2f} m/s): what the airspeed "
+                         f"hold lets through, a floor for [parts] held_airspeed_sigma")
+        lines.append(f"{'coefficient':<12}{'file':>10}{'fitted':>10}{'+- std':>10}")
         kept = "   kept: the flight's fit had the wrong sign"
         lines += [f"{c.name:<12}{c.prior:>10.4f}{c.estimate:>10.4f}{c.std:>10.4f}" + (kept if c.kept else "")
                   for c in self.coefficients]
@@ -310,6 +321,26 @@ def _fit_moment(A: np.ndarray, Z: np.ndarray, b: np.ndarray, prior: np.ndarray, 
         std[wrong] = PINNED_STD * np.maximum(np.abs(prior[wrong]), 1.0)
 
 
+HOLD_MEAN_S = 60.0
+"""The airspeed's spread is taken about its mean over this window (s): the catalogue's
+wind_mean_tau_s, how slowly the held airspeed the monitor's gusts return to follows."""
+
+
+def airspeed_spread(t: np.ndarray, V: np.ndarray) -> tuple[float, float]:
+    """(spread, noise) m/s of the pitot readings V (K,) at times t (K,) s, NaN where missing: the
+    pitot's noise from successive readings (var(dV) / 2, the air moving little in one frame) and the
+    airspeed's RMS about its HOLD_MEAN_S mean with that noise removed (the estimator's
+    held_airspeed_sigma under an airspeed hold, pitot.gust_sigma). NaN, NaN: under 2 windows of data."""
+    ok = np.isfinite(V)
+    V, t = V[ok], t[ok]
+    if V.size < 3 or t[-1] - t[0] < 2 * HOLD_MEAN_S:
+        return float("nan"), float("nan")
+    width = max(int(round(HOLD_MEAN_S / float(np.median(np.diff(t))))), 1)
+    noise_var = 0.5 * float(np.var(np.diff(V)))
+    about_mean = (V - uniform_filter1d(V, width, mode="nearest"))[width:-width]
+    return math.sqrt(max(float(np.var(about_mean)) - noise_var, 0.0)), math.sqrt(noise_var)
+
+
 def identify(frames: FlightFrames, base: AirframeParams) -> Identification:
     """Fit lift and pitching moment of `base` (the airframe file) to a fault-free flight."""
     s = _usable(frames)
@@ -333,8 +364,9 @@ def identify(frames: FlightFrames, base: AirframeParams) -> Identification:
     names = ("a0 (C_m0')", "a1 (C_ma/C_La)", "C_mq", "a3 (C_mde')")
     coefs += [Coefficient(names[i], float(prior[i]), float(a[i]), float(a_std[i]), i in kept)
               for i in range(4)]
+    spread, noise = airspeed_spread(s["t"], s["airspeed"])
     return Identification(params, coefs, int(b.size), lift_res, lift_r2, _rms(resid * K),
-                          _r2(resid, b), before)
+                          _r2(resid, b), before, spread, noise)
 
 
 def airframe_toml(ident: Identification, base_name: str, log_name: str) -> str:

@@ -18,7 +18,8 @@ entry is the wind plus the pitot's offset. `PitotRow` is the wind's model and th
   change that is the wind's. kappa = 0: an aircraft that flies through the gusts on its inertia,
   the airspeed takes the gust and c is the head wind. kappa = 1: under an autopilot's airspeed
   hold a gust moves the ground speed, not the airspeed; c = u + W is the airspeed the healthy
-  pitot reads, its gusts what the hold lets through, M the held airspeed. With kappa = 0 in such
+  pitot reads, its gusts what the hold lets through (sigma `held_airspeed_sigma`, not the wind's
+  `wind_gust_sigma`: `gust_sigma`), M the held airspeed. With kappa = 0 in such
   flight the wind had to follow every swing of u through its gust model alone and lagged the fast
   ones, so a held-reading hypothesis (blocked) fitted the steady reading better than the healthy
   pitot (false alarms in level flight). A gust returns to the mean, so an
@@ -156,6 +157,14 @@ NO_WIND = NoWind()
 """The wind part of a filter without a pitot (shared, stateless)."""
 
 
+def gust_sigma(settings) -> float:
+    """The stationary sigma (m/s) of c = W + kappa u about its mean: the head wind's gust
+    (`wind_gust_sigma`) with no hold, the airspeed's that the hold lets through
+    (`held_airspeed_sigma`) under it, blended by kappa in between (settings: `FilterSettings`)."""
+    kappa = settings.wind_hold
+    return (1.0 - kappa) * settings.wind_gust_sigma + kappa * settings.held_airspeed_sigma
+
+
 def pitot_row(estimator) -> PitotRow:
     """The `PitotRow` of an estimator (`EstimatorConfig`) that observes the airspeed (a derived row)."""
     faults, s = estimator.faults, estimator.settings
@@ -164,4 +173,4 @@ def pitot_row(estimator) -> PitotRow:
     sigma = estimator.sigma[estimator.measurements.index("airspeed")]
     return PitotRow(np.array(entries), wind_entry(faults), np.array(held, dtype=int),
                     estimator.observed.index("airspeed"), sigma, estimator.dt_s,
-                    (s.wind_gust_sigma, s.wind_gust_tau_s, s.wind_mean_tau_s), s.wind_hold)
+                    (gust_sigma(s), s.wind_gust_tau_s, s.wind_mean_tau_s), s.wind_hold)

@@ -8,7 +8,15 @@ import pytest
 
 from fdir_service.airframe.params import AirframeParams, load_airframe
 from fdir_service.cli import main
-from fdir_service.identification import FlightFrames, _combined, _fit_moment, _moment_rows, _usable, identify
+from fdir_service.identification import (
+    FlightFrames,
+    _combined,
+    _fit_moment,
+    _moment_rows,
+    _usable,
+    airspeed_spread,
+    identify,
+)
 
 ROWS = ("gnss_alt", "baro_alt", "u", "w", "theta", "q", "ax", "az", "airspeed")
 
@@ -123,3 +131,17 @@ def test_moment_rows_are_frame_intervals_with_the_held_elevator():
     assert b[0] * K[0] == pytest.approx((q[10] - q[9]) / 0.05)
     assert A[0, 3] == f.u[10, 0]
     assert A[0, 2] == pytest.approx(0.5 * (q[9] + q[10]) * p.c / (2 * 40.0), rel=0.06)
+
+
+def test_the_airspeed_holds_spread_is_told_from_the_pitots_noise():
+    t = np.arange(0.0, 600.0, 0.05)                  # 10 min at 20 Hz
+    rng = np.random.default_rng(7)
+    held = 40.0 + 0.6 * np.sin(2 * np.pi * t / 20.0)  # what the hold lets through: 0.42 m/s RMS
+    V = held + 0.5 * rng.standard_normal(t.size)     # the pitot's noise
+    V[::50] = np.nan                                 # readings that did not arrive
+    spread, noise = airspeed_spread(t, V)
+    assert noise == pytest.approx(0.5, abs=0.02)
+    assert spread == pytest.approx(0.6 / np.sqrt(2), abs=0.03)
+    spread, noise = airspeed_spread(t, 40.0 + 0.5 * rng.standard_normal(t.size))
+    assert spread < 0.05 and noise == pytest.approx(0.5, abs=0.02)   # a perfect hold: noise only
+    assert np.isnan(airspeed_spread(t[:1000], V[:1000])[0])         # 50 s: too short to tell

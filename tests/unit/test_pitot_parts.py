@@ -6,6 +6,7 @@ reading following the altitude, a returning pitot re-anchoring the wind, and the
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.inputs import G
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
-from fdir_service.estimation.pitot import PitotRow, wind_entry
+from fdir_service.estimation.pitot import PitotRow, gust_sigma, pitot_row, wind_entry
 from fdir_service.estimator_config import estimator_document, load_estimator, parse_estimator
 
 ROWS = ("u", "airspeed")
@@ -121,6 +122,29 @@ def test_under_an_airspeed_hold_the_wind_takes_the_ground_speeds_change_and_a_he
     np.testing.assert_allclose(MEAS.predict(X)[1], before)                # healthy: the airspeed held
     np.testing.assert_allclose(X[N_AIRFRAME + BLK, 1], 1.0)               # blocked: held, wind moves anyway
     assert part.hold == 1.0 and load_estimator("aerosonde-catalogue").settings.wind_hold == 1.0
+
+
+def test_under_a_hold_the_airspeeds_gusts_have_the_held_sigma_not_the_winds():
+    est = load_estimator("aerosonde-catalogue")
+    s = est.settings
+    assert (s.wind_hold, s.wind_gust_sigma, s.held_airspeed_sigma) == (1.0, 1.5, 0.5)
+    assert gust_sigma(s) == 0.5                                            # kappa = 1: the hold's
+    assert gust_sigma(dataclasses.replace(s, wind_hold=0.0)) == 1.5        # no hold: the wind's
+    assert gust_sigma(dataclasses.replace(s, wind_hold=0.5)) == pytest.approx(1.0)
+    part = pitot_row(est)
+    assert part.step_sigma == pytest.approx(0.5 * np.sqrt(1.0 - np.exp(-2 * 0.05 / 10.0)))
+    nf = len(est.faults)
+    X = np.zeros((N_AIRFRAME + nf, 4000))
+    X[1] = 38.0
+    X[N_AIRFRAME + part.wind] = 2.0                  # the airspeed c = u + W starts at its mean
+    part.mean = 40.0
+    modes = np.zeros((nf, 4000), dtype=bool)
+    rng = np.random.default_rng(4)
+    for _ in range(2000):                            # 100 s: stationary
+        u_before = X[1].copy()
+        X[1] += 0.3 * rng.standard_normal(4000)      # the ground speed swings; the hold takes it
+        part.evolve(X, modes, np.zeros(1), np.zeros(1, dtype=bool), rng, u_before)
+    assert (X[1] + X[N_AIRFRAME + part.wind]).std() == pytest.approx(0.5, abs=0.03)
 
 
 def test_a_blocked_pitot_in_mode_1_reads_g_dh_over_v_more_in_a_climb_and_holds_in_level_flight():
