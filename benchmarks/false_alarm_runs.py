@@ -5,8 +5,10 @@ false alarms per flight hour.
 
 Flies each run as `sim-bridge experiment` does (campaign seed 0, RJMRPF), declares items as the
 service does (P(item) over its types, the declare hysteresis) and prints, for every run with a
-false alarm or a lost state: the largest state error |x_hat - z| (p_d m, u m/s, w m/s, theta rad,
-q rad/s), each false declaration as item:type@time (s), and the injected faults' onsets.
+false alarm, a missed fault or a lost state: the largest state error |x_hat - z| (p_d m, u m/s,
+w m/s, theta rad, q rad/s), each false declaration as item:type@time (s), the injected faults'
+onsets, and each injected fault its item never declared (onset to 3 s after its end) as
+"missed id:item start-end s, max P(item)".
 """
 
 from __future__ import annotations
@@ -25,8 +27,10 @@ LOST_M = 100.0
 """An altitude error above this (m) marks a run whose state was lost."""
 
 
-def false_declarations(world: str, run: int) -> tuple[int, np.ndarray, list[str], list[tuple[str, float]]]:
-    """(run, max |state error| (5,), false declarations "item:type@t", [(fault id, onset s)])."""
+def false_declarations(world: str, run: int
+                       ) -> tuple[int, np.ndarray, list[str], list[tuple[str, float]], list[str]]:
+    """(run, max |state error| (5,), false declarations "item:type@t", [(fault id, onset s)],
+    the injected faults never declared)."""
     sc = load_scenario(world)
     tr = fly(sc, "RJMRPF", run)                            # on one BLAS thread per worker
     P = np.array([o.fault_probability for o in tr.outputs])
@@ -42,7 +46,23 @@ def false_declarations(world: str, run: int) -> tuple[int, np.ndarray, list[str]
             if k.size else []
     onsets = [(f.id, round(float(tr.t[np.flatnonzero(tr.active[:, j])[0]]), 1))
               for j, f in enumerate(sc.faults) if tr.active[:, j].any()]
-    return run, np.abs(X - tr.z).max(axis=0), found, onsets
+    return run, np.abs(X - tr.z).max(axis=0), found, onsets, missed_faults(sc, tr, view)
+
+
+def missed_faults(sc, tr, view) -> list[str]:
+    """The injected faults whose item was not declared between onset and 3 s after the end, as
+    "missed id:item start-end, max P(item)" (tr: the flight; view: its `ItemView`)."""
+    out = []
+    for j, f in enumerate(sc.faults):
+        on = np.flatnonzero(tr.active[:, j])
+        if not on.size or f.target not in view.targets:
+            continue
+        i = view.targets.index(f.target)
+        window = (tr.t >= tr.t[on[0]]) & (tr.t <= tr.t[on[-1]] + 3.0)
+        if not declared(tr.t, view.prob[:, i], Hysteresis())[window].any():
+            out.append(f"missed {f.id}:{f.target} {tr.t[on[0]]:.1f}-{tr.t[on[-1]]:.1f} s, "
+                       f"max P {view.prob[window, i].max():.2f}")
+    return out
 
 
 def main() -> None:
@@ -54,10 +74,10 @@ def main() -> None:
     a = ap.parse_args()
     with Pool(a.workers) as pool:
         jobs = [(a.world, r) for r in range(a.first, a.runs)]
-        for run, err, found, onsets in pool.starmap(false_declarations, jobs):
+        for run, err, found, onsets, missed in pool.starmap(false_declarations, jobs):
             lost = " LOST" if err[0] > LOST_M else ""
-            if found or lost:
-                print(run, np.round(err, 1), lost, found, onsets, flush=True)
+            if found or lost or missed:
+                print(run, np.round(err, 1), lost, found, onsets, *missed, flush=True)
 
 
 if __name__ == "__main__":
