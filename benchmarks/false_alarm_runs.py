@@ -21,7 +21,7 @@ import numpy as np
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
 from sim_bridge.type_yardstick import item_view, kind_of
-from sim_bridge.yardstick import Hysteresis, declared, quiet_mask
+from sim_bridge.yardstick import Hysteresis, declared, episode_window, quiet_mask
 
 LOST_M = 100.0
 """An altitude error above this (m) marks a run whose state was lost."""
@@ -50,7 +50,7 @@ def false_declarations(world: str, run: int
 
 
 def missed_faults(sc, tr, view) -> list[str]:
-    """The injected faults whose item was not declared between onset and 3 s after the end, as
+    """The injected faults whose item was not declared between onset and GRACE_S after the end, as
     "missed id:item start-end, max P(item)" (tr: the flight; view: its `ItemView`)."""
     out = []
     for j, f in enumerate(sc.faults):
@@ -58,7 +58,7 @@ def missed_faults(sc, tr, view) -> list[str]:
         if not on.size or f.target not in view.targets:
             continue
         i = view.targets.index(f.target)
-        window = (tr.t >= tr.t[on[0]]) & (tr.t <= tr.t[on[-1]] + 3.0)
+        window = episode_window(tr.t, on[0], on[-1] + 1)          # onset to GRACE_S after the end
         if not declared(tr.t, view.prob[:, i], Hysteresis())[window].any():
             out.append(f"missed {f.id}:{f.target} {tr.t[on[0]]:.1f}-{tr.t[on[-1]]:.1f} s, "
                        f"max P {view.prob[window, i].max():.2f}")
