@@ -132,12 +132,46 @@ POO_CONDITION_MAX = 1e10
 """Above this condition number the mode-0 block is taken as singular (pinv instead of solve)."""
 
 
+def _pinv_from_eigh(lam: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """numpy.linalg.pinv(A, hermitian=True) of a symmetric A from its eigh (lam, V), bit for bit:
+    the same steps as numpy's (its hermitian svd, then the cut at 1e-15 of the largest)."""
+    sgn = np.copysign(1.0, lam)
+    s = np.abs(lam)
+    order = np.argsort(s)[::-1]
+    sgn, s, u = sgn[order], s[order], V[:, order]
+    vt = np.transpose(u * sgn[None, :]).conjugate()
+    large = s > 1e-15 * np.amax(s)
+    s = np.divide(1, s, where=large, out=s)
+    s[~large] = 0
+    return np.matmul(np.transpose(vt), np.multiply(s[:, None], np.transpose(u)))
+
+
 def _solve_or_pinv(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """A^-1 B by solve (bit for bit what logs recorded before the robust monitor replay with), or
-    pinv(A) B where A is (near) singular: mode-0 entries that co-vary exactly (a drifting pair)."""
-    if np.linalg.cond(A) < POO_CONDITION_MAX:
+    pinv(A) B where A (symmetric) is (near) singular: mode-0 entries that co-vary exactly (a
+    drifting pair). One eigen-decomposition gives both the condition number (|lambda| max / min,
+    A's singular values) and the pseudo-inverse."""
+    lam, V = np.linalg.eigh(A)
+    s = np.abs(lam)
+    if s.max() < POO_CONDITION_MAX * s.min():
         return np.linalg.solve(A, B)
-    return np.linalg.pinv(A, hermitian=True) @ B
+    return _pinv_from_eigh(lam, V) @ B
+
+
+_SPLIT: dict[tuple[int, tuple[int, ...]], tuple] = {}
+"""(n, off) -> the np.ix_ index pairs of (off, off), (keep, off), (keep, keep): a handful of
+mode patterns recur at every resample."""
+
+
+def _split(n: int, off: list[int]) -> tuple:
+    key = (n, tuple(off))
+    hit = _SPLIT.get(key)
+    if hit is None:
+        keep = [i for i in range(n) if i not in off]
+        if len(_SPLIT) > 4096:
+            _SPLIT.clear()
+        hit = _SPLIT[key] = (np.ix_(off, off), np.ix_(keep, off), np.ix_(keep, keep))
+    return hit
 
 
 def conditioned_on_mode0(P: np.ndarray, off: list[int]) -> np.ndarray:
@@ -145,11 +179,11 @@ def conditioned_on_mode0(P: np.ndarray, off: list[int]) -> np.ndarray:
     zeroed; a new array."""
     P = P.copy()
     if off:
-        keep = [i for i in range(P.shape[0]) if i not in off]
-        Poo = P[np.ix_(off, off)]
-        Pko = P[np.ix_(keep, off)]
-        if np.all(np.diag(Poo) > 1e-300):
-            P[np.ix_(keep, keep)] -= Pko @ _solve_or_pinv(Poo, Pko.T)
+        oo, ko, kk = _split(P.shape[0], off)
+        d = P.diagonal()
+        if all(d[i] > 1e-300 for i in off):
+            Pko = P[ko]
+            P[kk] -= Pko @ _solve_or_pinv(P[oo], Pko.T)
         P[off, :] = 0.0
         P[:, off] = 0.0
     return P
@@ -177,10 +211,11 @@ class _PatternCovariance:
             P = (dX * (wg / W)) @ dX.T
         else:
             P = conditioned_on_mode0(self._global_cov(), [self.na + j for j in range(self.nf) if not on[j]])
-        if self.floor is not None:
-            for j in range(self.nf):
-                if on[j] and P[self.na + j, self.na + j] < self.floor[j]:
-                    P[self.na + j, self.na + j] = self.floor[j]
+        if self.floor is not None:          # mode-1 entries' kernel variance at least the floor
+            js = [j for j in range(self.nf) if on[j]]
+            if js:
+                d = [self.na + j for j in js]
+                P[d, d] = np.maximum(P[d, d], self.floor[js])
         return P
 
     def _global_cov(self) -> np.ndarray:

@@ -11,7 +11,14 @@ from fdir_service.airframe import load_airframe, trim
 from fdir_service.airframe.dynamics import derivatives, derivatives_rows
 from fdir_service.estimation.adaptive import AdaptiveTransition, phi_fa, phi_md
 from fdir_service.estimation.jump import FixedTransition, jump
-from fdir_service.estimation.regularize import bandwidth, covariance_factor, epanechnikov, h_opt
+from fdir_service.estimation.regularize import (
+    _solve_or_pinv,
+    bandwidth,
+    conditioned_on_mode0,
+    covariance_factor,
+    epanechnikov,
+    h_opt,
+)
 from fdir_service.estimation.resample import effective_sample_size, multinomial, systematic
 
 
@@ -44,6 +51,27 @@ def test_covariance_factor_handles_zero_variance_rows():
     D = covariance_factor(P)
     np.testing.assert_allclose(D @ D.T, P, atol=1e-12)
     assert np.all(D[2] == 0) and np.all(D[:, 2] == 0)
+
+
+def test_mode0_conditioning_solves_or_takes_the_pseudo_inverse_as_numpy_does():
+    """One eigen-decomposition gives the condition and the pseudo-inverse: the same bits as
+    numpy's cond (< 1e10: solve) and pinv(hermitian=True) on regular and singular blocks."""
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        n = int(rng.integers(2, 12))
+        A = rng.standard_normal((n, n + 2))
+        A = A @ A.T
+        if trial % 2:                                   # two entries that co-vary exactly
+            A[:, 0] = A[:, 1]
+            A[0, :] = A[1, :]
+        B = rng.standard_normal((n, 3))
+        want = (np.linalg.solve(A, B) if np.linalg.cond(A) < 1e10
+                else np.linalg.pinv(A, hermitian=True) @ B)
+        assert np.array_equal(_solve_or_pinv(A, B), want)
+    P = np.array([[4.0, 1.0, 1.0], [1.0, 2.0, 1.0], [1.0, 1.0, 1.0]])
+    C = conditioned_on_mode0(P, [2])                   # Schur complement on entry 2, zeroed
+    assert np.allclose(C[:2, :2], P[:2, :2] - np.outer(P[:2, 2], P[:2, 2]) / P[2, 2])
+    assert not C[2].any() and not C[:, 2].any()
 
 
 @pytest.mark.parametrize("resample", [multinomial, systematic])
