@@ -74,3 +74,19 @@ def test_prior_weighting_needs_every_sensor_fault_range():
 def test_missing_file_is_named(tmp_path):
     with pytest.raises(ConfigError, match="no such estimator file"):
         load_estimator(tmp_path / "nope.toml")
+
+
+def test_fdir_bench_runs_what_fdir_run_monitors_with_and_states_its_goal(capsys):
+    """`fdir bench` without --estimator benchmarks the service's estimator (the robust monitor),
+    not the thesis airframe's, and prints the goal for that estimator's RJMRPF / bootstrap ratio."""
+    from fdir_service.commands.bench import RATIO_GOALS, bench_estimator, print_bench
+    from fdir_service.service_config import load_service_config
+
+    assert bench_estimator().id == load_service_config().estimator.id == "aerosonde-robust"
+    assert bench_estimator("aerosonde").id == "aerosonde"
+    res = {"cores": 2, "filters": {"RJMRPF": {"1000": 300.0}, "bootstrap": {"1000": 200.0}},
+           "mean": {"RJMRPF": {"1000": 360.0}, "bootstrap": {"1000": 200.0}}}
+    print_bench(res, "t", RATIO_GOALS["aerosonde-robust"])
+    assert "median 1.50, mean 1.80 (goal <= 1.5)" in capsys.readouterr().out
+    print_bench(res, "t")
+    assert "goal <=" not in capsys.readouterr().out
