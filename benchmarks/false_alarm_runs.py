@@ -1,14 +1,14 @@
 """Which runs of an experiment raise false alarms, and when: the per-run view behind a campaign's
 false alarms per flight hour.
 
-    python benchmarks/false_alarm_runs.py real-stuck [--runs 100] [--first 0] [--workers 2]
+    python benchmarks/false_alarm_runs.py real-stuck [--runs 100] [--first 0] [--seed 0] [--workers 2]
 
-Flies each run as `sim-bridge experiment` does (campaign seed 0, RJMRPF), declares items as the
-service does (P(item) over its types, the declare hysteresis) and prints, for every run with a
-false alarm, a missed fault or a lost state: the largest state error |x_hat - z| (p_d m, u m/s,
-w m/s, theta rad, q rad/s), each false declaration as item:type@time (s), the injected faults'
-onsets, and each injected fault its item never declared (onset to 3 s after its end) as
-"missed id:item start-end s, max P(item)".
+Flies each run as `sim-bridge experiment` does (campaign seed --seed, default 0; RJMRPF),
+declares items as the service does (P(item) over its types, the declare hysteresis) and prints,
+for every run with a false alarm, a missed fault or a lost state: the largest state error
+|x_hat - z| (p_d m, u m/s, w m/s, theta rad, q rad/s), each false declaration as
+item:type@time (s), the injected faults' onsets, and each injected fault its item never declared
+(onset to 3 s after its end) as "missed id:item start-end s, max P(item)".
 """
 
 from __future__ import annotations
@@ -27,12 +27,12 @@ LOST_M = 100.0
 """An altitude error above this (m) marks a run whose state was lost."""
 
 
-def false_declarations(world: str, run: int
+def false_declarations(world: str, run: int, seed: int = 0
                        ) -> tuple[int, np.ndarray, list[str], list[tuple[str, float]], list[str]]:
     """(run, max |state error| (5,), false declarations "item:type@t", [(fault id, onset s)],
     the injected faults never declared)."""
     sc = load_scenario(world)
-    tr = fly(sc, "RJMRPF", run)                            # on one BLAS thread per worker
+    tr = fly(sc, "RJMRPF", run, seed)                      # on one BLAS thread per worker
     P = np.array([o.fault_probability for o in tr.outputs])
     X = np.array([o.x_mean[:5] for o in tr.outputs])
     names = [f.id for f in sc.estimator.faults]
@@ -71,9 +71,10 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--first", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=0, help="campaign seed (sim-bridge experiment --seed)")
     a = ap.parse_args()
     with Pool(a.workers) as pool:
-        jobs = [(a.world, r) for r in range(a.first, a.runs)]
+        jobs = [(a.world, r, a.seed) for r in range(a.first, a.runs)]
         for run, err, found, onsets, missed in pool.starmap(false_declarations, jobs):
             lost = " LOST" if err[0] > LOST_M else ""
             if found or lost or missed:
