@@ -672,9 +672,30 @@ def yardstick_markdown(doc: dict) -> list[str]:
                  f"{_fmt(y['isolation_accuracy'], 2)} |")
     L.append("")
     for name, y in rows:
+        L += false_alarm_markdown(name, y, doc)
+    for name, y in rows:
         L += _confusion_markdown(f"Isolation, {name} (rows: injected; columns: first fault declared)",
                                  "injected", y["isolation"], "none")
     return L + by_type_markdown(rows)
+
+
+FALSE_ALARMS_LISTED = 30
+"""At most this many false alarms are listed per filter in report.md (results.json has them all)."""
+
+
+def false_alarm_markdown(name: str, y: dict, doc: dict) -> list[str]:
+    """Which runs raised a filter's false alarms (yardstick "false_alarm_list"): run, item, when it
+    was declared and how long it stood, with the command that flies one of them again."""
+    fas = y.get("false_alarm_list") or []
+    if not fas:
+        return []
+    shown = "; ".join(f"run {fa['run']}: {fa['item']} at {fa['t_s']:.1f} s ({fa['s']:.1f} s)"
+                      for fa in fas[:FALSE_ALARMS_LISTED])
+    extra = len(fas) - FALSE_ALARMS_LISTED
+    more = f"; and {extra} more (results.json)" if extra > 0 else ""
+    return [f"False alarms, {name} (run: item declared at, standing for): {shown}{more}. "
+            f"To fly run R again and list its declarations: `python benchmarks/false_alarm_runs.py "
+            f"{doc.get('scenario', 'WORLD')} --seed {doc.get('seed', 0)} --first R --runs R+1`.", ""]
 
 
 def _confusion_markdown(title: str, head: str, confusion: dict[str, dict[str, int]],

@@ -98,6 +98,21 @@ def _onsets(mask: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.diff(m, prepend=0) == 1)
 
 
+def _stretches(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, end) frame pairs of each stretch where a bool series (K,) is True."""
+    m = np.diff(mask.astype(np.int8), prepend=0, append=0)
+    return list(zip(np.flatnonzero(m == 1).tolist(), np.flatnonzero(m == -1).tolist(), strict=True))
+
+
+def false_alarm_list(t: np.ndarray, false_dec: np.ndarray, fault_ids: list[str]) -> list[dict]:
+    """Each false alarm of one run, {"item", "t_s": its first frame (s), "s": how long it stood
+    (s)}, in time order: false_dec (K, nf) the declarations in fault-free time."""
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    out = [{"item": fault_ids[j], "t_s": round(float(t[a]), 2), "s": round((b - a) * dt, 2)}
+           for j in range(false_dec.shape[1]) for a, b in _stretches(false_dec[:, j])]
+    return sorted(out, key=lambda fa: (fa["t_s"], fa["item"]))
+
+
 def episodes(active: np.ndarray) -> list[tuple[int, int]]:
     """(start, end) index pairs of the True stretches of active (K,), end exclusive."""
     d = np.diff(active.astype(np.int8), prepend=0, append=0)
@@ -152,7 +167,8 @@ def run_yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_f
     false_alarms = sum(int(_onsets(false_dec[:, j]).size) for j in range(dec.shape[1]))
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     out = {"false_alarms": false_alarms, "fault_free_s": float(quiet.sum() * dt),
-           "false_declared_s": float(false_dec.any(axis=1).sum() * dt), "episodes": []}
+           "false_declared_s": float(false_dec.any(axis=1).sum() * dt), "episodes": [],
+           "false_alarm_list": false_alarm_list(t, false_dec, fault_ids)}
     right = id_matches(fault_ids, world_ids) if right is None else right
     for w, wid in enumerate(world_ids):
         for s, e in episodes(act[:, w]):
@@ -211,8 +227,9 @@ def delay_stats(delays: list[float]) -> dict:
     return {"median": q(50), "p90": q(90), "max": q(100), "n": len(delays)}
 
 
-def pool(runs: list[dict], world_ids: list[str]) -> dict:
-    """The yardstick over runs (each `run_yardstick`'s output) as results.json's `yardstick`."""
+def pool(runs: list[dict], world_ids: list[str], run_ids: list[int] | None = None) -> dict:
+    """The yardstick over runs (each `run_yardstick`'s output; run_ids: their run numbers, default
+    0, 1, ...) as results.json's `yardstick`; "false_alarm_list" names each false alarm's run."""
     fa = sum(r["false_alarms"] for r in runs)
     hours = sum(r["fault_free_s"] for r in runs) / 3600.0
     false_h = sum(r.get("false_declared_s", 0.0) for r in runs) / 3600.0
@@ -233,6 +250,9 @@ def pool(runs: list[dict], world_ids: list[str]) -> dict:
         "delay_s": delay_stats(delays),
         "isolation": confusion,
         "isolation_accuracy": (right / len(eps)) if eps else None,
+        "false_alarm_list": [{"run": rid, **fa} for rid, r in zip(run_ids or range(len(runs)), runs,
+                                                                 strict=True)
+                             for fa in r.get("false_alarm_list", [])],
     }
 
 
@@ -249,7 +269,7 @@ def yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_fault
     def at(rl: Hysteresis) -> dict:
         return pool([run_yardstick(t, prob[r], fault_ids, world_faults[r], world_ids, rl, right,
                                    None if world_active is None else world_active[r]) for r in ok],
-                    world_ids)
+                    world_ids, ok)
 
     out = at(rule)
     out["p_declare"] = rule.p_declare

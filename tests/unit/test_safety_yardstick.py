@@ -57,6 +57,28 @@ def test_one_false_alarm_in_ten_fault_free_minutes_is_six_per_hour():
     assert pooled["episodes"] == 0 and pooled["detection_fraction"] is None
 
 
+def test_each_false_alarm_is_listed_with_its_run_item_time_and_length():
+    """The report says which flights cried wolf: run, item, first declared frame, time it stood."""
+    from sim_bridge.report import false_alarm_markdown
+
+    t = _t(600.0)
+    p = np.zeros((t.size, 2))
+    p[4000:4006, 0] = 0.95                  # declared at frame 4004 (0.2 s hold), cleared 1 s after
+    p[1000:1100, 1] = 0.95                  # 5 s above: declared from 1004, cleared 1 s after it drops
+    quiet = np.zeros((t.size, 2))
+    runs = [run_yardstick(t, np.zeros((t.size, 2)), ["gnss", "baro"], quiet, ["gnss"], RULE),
+            run_yardstick(t, p, ["gnss", "baro"], quiet, ["gnss"], RULE)]
+    y = pool(runs, ["gnss"], [7, 12])
+    assert y["false_alarms"] == 2
+    assert y["false_alarm_list"] == [
+        {"run": 12, "item": "baro", "t_s": pytest.approx(t[1004]), "s": pytest.approx(5.8)},
+        {"run": 12, "item": "gnss", "t_s": pytest.approx(t[4004]), "s": pytest.approx(1.1)}]
+    text = false_alarm_markdown("RJMRPF", y, {"scenario": "real-calm-faultfree", "seed": 1})[0]
+    assert "run 12: baro at 50.2 s (5.8 s); run 12: gnss at 200.2 s (1.1 s)" in text
+    assert "false_alarm_runs.py real-calm-faultfree --seed 1 --first R --runs R+1" in text
+    assert false_alarm_markdown("RJMRPF", pool(runs[:1], ["gnss"]), {}) == []
+
+
 def test_detection_delay_isolation_and_the_grace_period():
     """theta injected 30-40 s; theta declared 0.5 s after onset (isolated right); a q declaration
     1 s after the end, cleared 1.5 s later, is inside the grace period (no false alarm); a q
