@@ -98,10 +98,10 @@ def _onsets(mask: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.diff(m, prepend=0) == 1)
 
 
-def _stretches(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, end) frame pairs of each stretch where a bool series (K,) is True."""
-    m = np.diff(mask.astype(np.int8), prepend=0, append=0)
-    return list(zip(np.flatnonzero(m == 1).tolist(), np.flatnonzero(m == -1).tolist(), strict=True))
+def episodes(active: np.ndarray) -> list[tuple[int, int]]:
+    """(start, end) index pairs of the True stretches of active (K,), end exclusive."""
+    d = np.diff(active.astype(np.int8), prepend=0, append=0)
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
 
 
 def false_alarm_list(t: np.ndarray, false_dec: np.ndarray, fault_ids: list[str]) -> list[dict]:
@@ -109,14 +109,8 @@ def false_alarm_list(t: np.ndarray, false_dec: np.ndarray, fault_ids: list[str])
     (s)}, in time order: false_dec (K, nf) the declarations in fault-free time."""
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     out = [{"item": fault_ids[j], "t_s": round(float(t[a]), 2), "s": round((b - a) * dt, 2)}
-           for j in range(false_dec.shape[1]) for a, b in _stretches(false_dec[:, j])]
+           for j in range(false_dec.shape[1]) for a, b in episodes(false_dec[:, j])]
     return sorted(out, key=lambda fa: (fa["t_s"], fa["item"]))
-
-
-def episodes(active: np.ndarray) -> list[tuple[int, int]]:
-    """(start, end) index pairs of the True stretches of active (K,), end exclusive."""
-    d = np.diff(active.astype(np.int8), prepend=0, append=0)
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
 
 
 def quiet_mask(t: np.ndarray, world_active: np.ndarray) -> np.ndarray:
