@@ -137,11 +137,17 @@ class KalmanCorrection:
     """Weights N(y - H x_i; 0, S) and x_i += K (y - H x_i) in place (eq. 5.3-5.9); `pin(X, modes)`
     puts pinned fault entries back afterwards (the jump's `pin`). hold_mode0_faults (parts.mode0 =
     "drift"): a mode-0 fault entry is not corrected (its drift is slow: the weights select it), so
-    the cloud's gain cannot carry a mode-1 particle's fault into the fault-free mode."""
+    the cloud's gain cannot carry a mode-1 particle's fault into the fault-free mode.
+    altimeters_move_altitude (parts.altitude_gain = "altimeters"): only the rows that measure the
+    altitude move it; the others' gain on it is zeroed. In an upset the pitch rate's and the
+    velocities' innovations are the kinematic model's lag, and the cloud's covariance of the
+    altitude with those states turned them into metres of altitude that the altimeters' drift
+    entries then absorbed (docs/robustness.md, run 56 of real-turbulence-faultfree, seed 1)."""
 
-    def __init__(self, pin, hold_mode0_faults: bool = False) -> None:
+    def __init__(self, pin, hold_mode0_faults: bool = False, altimeters_move_altitude: bool = False) -> None:
         self.pin = pin
         self.hold_mode0_faults = bool(hold_mode0_faults)
+        self.altimeters_move_altitude = bool(altimeters_move_altitude)
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         mm = frame.mm
@@ -149,6 +155,8 @@ class KalmanCorrection:
             return np.zeros(X.shape[1])
         _, P = weighted_mean_cov(X, w)
         K, S_inv = kalman_gain(P, mm.H, mm.R)
+        if self.altimeters_move_altitude:
+            K[0, mm.H[:, 0] == 0.0] = 0.0          # p_d: moved by the rows that measure it only
         innov = frame.yv[:, None] - mm.H @ X
         ll = gaussian_loglik(innov, S_inv)
         dX = K @ innov

@@ -187,6 +187,26 @@ def test_kalman_correction_moves_the_cloud_mean_as_a_kalman_update():
     assert pinned == [True] and ll.shape == (N,)
 
 
+def test_only_the_altimeters_move_the_altitude_when_asked():
+    """parts.altitude_gain = "altimeters": the attitude row's innovation, which the cloud's
+    altitude-attitude covariance would turn into metres, leaves the altitude where it was; the
+    other states are corrected as before, and a GNSS innovation still moves the altitude."""
+    X, modes, w = _cloud(seed=4)
+    X[:5] *= np.array([[10.0], [1.0], [1.0], [0.01], [0.01]])
+    X[0] += 500.0 * X[3]                                # altitude and pitch correlated in the cloud
+    y = np.array([-(X[0] @ w), 0.05])                   # the GNSS reads the mean; theta is off
+    plain, gated = X.copy(), X.copy()
+    KalmanCorrection(lambda X, m: None).update(plain, w, modes, _frame(y=y))
+    KalmanCorrection(lambda X, m: None, altimeters_move_altitude=True).update(gated, w, modes, _frame(y=y))
+    assert abs((plain[0] - X[0]) @ w) > 0.5                          # the attitude moved it
+    assert abs((gated[0] - X[0]) @ w) < 0.05 * abs((plain[0] - X[0]) @ w)
+    np.testing.assert_allclose(gated[3], plain[3])                   # theta as before
+    moved = X.copy()
+    KalmanCorrection(lambda X, m: None, altimeters_move_altitude=True).update(
+        moved, w, modes, _frame(y=(y[0] - 20.0, X[3] @ w + X[6] @ w), mask=(True, True)))
+    assert (moved[0] - X[0]) @ w > 1.0                                # 20 m lower reading: p_d grows
+
+
 # ----------------------------------------------------------------------------- resample, regularise
 def test_resample_triggers():
     assert BelowEffectiveSize(0.5).due(499.0, 1000) and not BelowEffectiveSize(0.5).due(500.0, 1000)
