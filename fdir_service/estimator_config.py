@@ -167,8 +167,8 @@ class FilterSettings:
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
     wind_hold: float = 0.0               # 0..1: the share of a ground-speed change that is the wind's
     held_airspeed_sigma: float = 0.5     # m/s: the airspeed's gusts an airspeed hold lets through
-    altitude_gain: str = "all_rows"      # "all_rows" | "altimeters": which rows' innovations may
-    #                                      move the altitude in the Kalman correction
+    altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
+    #                                      innovations may move the altitude in the Kalman correction
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -374,7 +374,7 @@ _CHOICES = {
     "mode0": ("forced_zero", "reset_on_exit", "drift"), "sentinel_weighting": ("thesis", "prior"),
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
-    "altitude_gain": ("all_rows", "altimeters"),
+    "altitude_gain": ("all_rows", "altimeters", "no_pitch_rate"),
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
 

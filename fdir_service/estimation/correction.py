@@ -144,10 +144,14 @@ class KalmanCorrection:
     altitude with those states turned them into metres of altitude that the altimeters' drift
     entries then absorbed (docs/robustness.md, run 56 of real-turbulence-faultfree, seed 1)."""
 
-    def __init__(self, pin, hold_mode0_faults: bool = False, altimeters_move_altitude: bool = False) -> None:
+    def __init__(self, pin, hold_mode0_faults: bool = False, altimeters_move_altitude: bool = False,
+                 pitch_rate_keeps_altitude: bool = False) -> None:
         self.pin = pin
         self.hold_mode0_faults = bool(hold_mode0_faults)
         self.altimeters_move_altitude = bool(altimeters_move_altitude)
+        self.pitch_rate_keeps_altitude = bool(pitch_rate_keeps_altitude)
+        """parts.altitude_gain = "no_pitch_rate": only the pitch-rate row's gain on the altitude is
+        zeroed (the state the kinematic model lags most in an upset)."""
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         mm = frame.mm
@@ -157,6 +161,8 @@ class KalmanCorrection:
         K, S_inv = kalman_gain(P, mm.H, mm.R)
         if self.altimeters_move_altitude:
             K[0, mm.H[:, 0] == 0.0] = 0.0          # p_d: moved by the rows that measure it only
+        elif self.pitch_rate_keeps_altitude:
+            K[0, mm.H[:, 4] != 0.0] = 0.0          # p_d: not moved by the pitch-rate row
         innov = frame.yv[:, None] - mm.H @ X
         ll = gaussian_loglik(innov, S_inv)
         dX = K @ innov

@@ -207,6 +207,24 @@ def test_only_the_altimeters_move_the_altitude_when_asked():
     assert (moved[0] - X[0]) @ w > 1.0                                # 20 m lower reading: p_d grows
 
 
+def test_the_pitch_rate_row_alone_can_be_kept_from_moving_the_altitude():
+    """parts.altitude_gain = "no_pitch_rate": the gyro row's innovation no longer moves the
+    altitude; every other row's gain, and every other state, as the full correction's."""
+    layout = FaultLayout(("q",), ("sensor",), ("q",), ("gnss_alt", "q"))
+    meas = MeasurementModel.build(layout, np.array([5.0, 0.003]))
+    rng = np.random.default_rng(8)
+    X = rng.standard_normal((layout.n, 500)) * np.array([[3.0], [0.5], [0.5], [0.01], [0.02], [0.0]])
+    X[0] += 100.0 * X[4]                                # altitude and pitch rate correlated
+    w = np.full(500, 1 / 500)
+    modes = np.zeros((1, 500), bool)
+    frame = Frame.of(1.0, np.array([-(X[0] @ w), X[4] @ w + 0.05]), np.ones(2, bool), np.zeros(2), meas)
+    plain, gated = X.copy(), X.copy()
+    KalmanCorrection(lambda X, m: None).update(plain, w, modes, frame)
+    KalmanCorrection(lambda X, m: None, pitch_rate_keeps_altitude=True).update(gated, w, modes, frame)
+    assert abs((plain[0] - X[0]) @ w) > 1.0 and abs((gated[0] - X[0]) @ w) < 0.05
+    np.testing.assert_allclose(gated[1:], plain[1:])
+
+
 # ----------------------------------------------------------------------------- resample, regularise
 def test_resample_triggers():
     assert BelowEffectiveSize(0.5).due(499.0, 1000) and not BelowEffectiveSize(0.5).due(500.0, 1000)
