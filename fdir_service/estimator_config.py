@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from fdir_service.errors import ConfigError
+from fdir_service.estimation.correction import ALTITUDE_GAINS
 from fdir_service.estimation.recipes import FILTER_NAMES
 from fdir_service.paths import airframe_path, estimator_path
 from fdir_service.tomltable import (
@@ -374,7 +375,7 @@ _CHOICES = {
     "mode0": ("forced_zero", "reset_on_exit", "drift"), "sentinel_weighting": ("thesis", "prior"),
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
-    "altitude_gain": ("all_rows", "altimeters", "no_pitch_rate"),
+    "altitude_gain": ALTITUDE_GAINS,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
 

@@ -104,10 +104,9 @@ def episodes(active: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
 
 
-def false_alarm_list(t: np.ndarray, false_dec: np.ndarray, fault_ids: list[str]) -> list[dict]:
+def false_alarm_list(t: np.ndarray, false_dec: np.ndarray, fault_ids: list[str], dt: float) -> list[dict]:
     """Each false alarm of one run, {"item", "t_s": its first frame (s), "s": how long it stood
-    (s)}, in time order: false_dec (K, nf) the declarations in fault-free time."""
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    (s)}, in time order: false_dec (K, nf) the declarations in fault-free time; dt the frame (s)."""
     out = [{"item": fault_ids[j], "t_s": round(float(t[a]), 2), "s": round((b - a) * dt, 2)}
            for j in range(false_dec.shape[1]) for a, b in episodes(false_dec[:, j])]
     return sorted(out, key=lambda fa: (fa["t_s"], fa["item"]))
@@ -162,7 +161,7 @@ def run_yardstick(t: np.ndarray, prob: np.ndarray, fault_ids: list[str], world_f
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     out = {"false_alarms": false_alarms, "fault_free_s": float(quiet.sum() * dt),
            "false_declared_s": float(false_dec.any(axis=1).sum() * dt), "episodes": [],
-           "false_alarm_list": false_alarm_list(t, false_dec, fault_ids)}
+           "false_alarm_list": false_alarm_list(t, false_dec, fault_ids, dt)}
     right = id_matches(fault_ids, world_ids) if right is None else right
     for w, wid in enumerate(world_ids):
         for s, e in episodes(act[:, w]):

@@ -133,25 +133,37 @@ class Likelihood:
         return row_loglik(X, frame)
 
 
+ALTITUDE_GAINS = ("all_rows", "altimeters", "no_pitch_rate")
+"""parts.altitude_gain: which rows' innovations may move the altitude (p_d, state 0) in the Kalman
+correction: every row; only the rows that measure it; every row but the gyro's (state 4)."""
+
+
+def altitude_gain_cut(H: np.ndarray, altitude_gain: str) -> np.ndarray | None:
+    """(m,) bool: the rows of H (m, n) whose gain on the altitude is zeroed; None: none."""
+    if altitude_gain == "altimeters":
+        return H[:, 0] == 0.0
+    if altitude_gain == "no_pitch_rate":
+        return H[:, 4] != 0.0
+    return None
+
+
 class KalmanCorrection:
     """Weights N(y - H x_i; 0, S) and x_i += K (y - H x_i) in place (eq. 5.3-5.9); `pin(X, modes)`
     puts pinned fault entries back afterwards (the jump's `pin`). hold_mode0_faults (parts.mode0 =
     "drift"): a mode-0 fault entry is not corrected (its drift is slow: the weights select it), so
     the cloud's gain cannot carry a mode-1 particle's fault into the fault-free mode.
-    altimeters_move_altitude (parts.altitude_gain = "altimeters"): only the rows that measure the
-    altitude move it; the others' gain on it is zeroed. In an upset the pitch rate's and the
-    velocities' innovations are the kinematic model's lag, and the cloud's covariance of the
-    altitude with those states turned them into metres of altitude that the altimeters' drift
-    entries then absorbed (docs/robustness.md, run 56 of real-turbulence-faultfree, seed 1)."""
+    altitude_gain (`ALTITUDE_GAINS`, `altitude_gain_cut`): which rows may move the altitude. In an
+    upset the pitch rate's and the velocities' innovations are the kinematic model's lag, and the
+    cloud's covariance of the altitude with those states turned them into metres of altitude that
+    the altimeters' drift entries then absorbed (docs/robustness.md, run 56 of
+    real-turbulence-faultfree, seed 1); the default keeps every row."""
 
-    def __init__(self, pin, hold_mode0_faults: bool = False, altimeters_move_altitude: bool = False,
-                 pitch_rate_keeps_altitude: bool = False) -> None:
+    def __init__(self, pin, hold_mode0_faults: bool = False, altitude_gain: str = "all_rows") -> None:
         self.pin = pin
         self.hold_mode0_faults = bool(hold_mode0_faults)
-        self.altimeters_move_altitude = bool(altimeters_move_altitude)
-        self.pitch_rate_keeps_altitude = bool(pitch_rate_keeps_altitude)
-        """parts.altitude_gain = "no_pitch_rate": only the pitch-rate row's gain on the altitude is
-        zeroed (the state the kinematic model lags most in an upset)."""
+        if altitude_gain not in ALTITUDE_GAINS:
+            raise ValueError(f"altitude_gain {altitude_gain!r}: expected one of {ALTITUDE_GAINS}")
+        self.altitude_gain = altitude_gain
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         mm = frame.mm
@@ -159,10 +171,9 @@ class KalmanCorrection:
             return np.zeros(X.shape[1])
         _, P = weighted_mean_cov(X, w)
         K, S_inv = kalman_gain(P, mm.H, mm.R)
-        if self.altimeters_move_altitude:
-            K[0, mm.H[:, 0] == 0.0] = 0.0          # p_d: moved by the rows that measure it only
-        elif self.pitch_rate_keeps_altitude:
-            K[0, mm.H[:, 4] != 0.0] = 0.0          # p_d: not moved by the pitch-rate row
+        cut = altitude_gain_cut(mm.H, self.altitude_gain)
+        if cut is not None:
+            K[0, cut] = 0.0
         innov = frame.yv[:, None] - mm.H @ X
         ll = gaussian_loglik(innov, S_inv)
         dX = K @ innov

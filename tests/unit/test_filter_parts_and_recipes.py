@@ -197,12 +197,12 @@ def test_only_the_altimeters_move_the_altitude_when_asked():
     y = np.array([-(X[0] @ w), 0.05])                   # the GNSS reads the mean; theta is off
     plain, gated = X.copy(), X.copy()
     KalmanCorrection(lambda X, m: None).update(plain, w, modes, _frame(y=y))
-    KalmanCorrection(lambda X, m: None, altimeters_move_altitude=True).update(gated, w, modes, _frame(y=y))
+    KalmanCorrection(lambda X, m: None, altitude_gain="altimeters").update(gated, w, modes, _frame(y=y))
     assert abs((plain[0] - X[0]) @ w) > 0.5                          # the attitude moved it
     assert abs((gated[0] - X[0]) @ w) < 0.05 * abs((plain[0] - X[0]) @ w)
     np.testing.assert_allclose(gated[3], plain[3])                   # theta as before
     moved = X.copy()
-    KalmanCorrection(lambda X, m: None, altimeters_move_altitude=True).update(
+    KalmanCorrection(lambda X, m: None, altitude_gain="altimeters").update(
         moved, w, modes, _frame(y=(y[0] - 20.0, X[3] @ w + X[6] @ w), mask=(True, True)))
     assert (moved[0] - X[0]) @ w > 1.0                                # 20 m lower reading: p_d grows
 
@@ -220,7 +220,7 @@ def test_the_pitch_rate_row_alone_can_be_kept_from_moving_the_altitude():
     frame = Frame.of(1.0, np.array([-(X[0] @ w), X[4] @ w + 0.05]), np.ones(2, bool), np.zeros(2), meas)
     plain, gated = X.copy(), X.copy()
     KalmanCorrection(lambda X, m: None).update(plain, w, modes, frame)
-    KalmanCorrection(lambda X, m: None, pitch_rate_keeps_altitude=True).update(gated, w, modes, frame)
+    KalmanCorrection(lambda X, m: None, altitude_gain="no_pitch_rate").update(gated, w, modes, frame)
     assert abs((plain[0] - X[0]) @ w) > 1.0 and abs((gated[0] - X[0]) @ w) < 0.05
     np.testing.assert_allclose(gated[1:], plain[1:])
 
