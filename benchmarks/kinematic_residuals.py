@@ -1,5 +1,6 @@
 """How well the kinematic model's equations hold on a world's true state: the mean and rms residual
-of each (docs/robustness.md, "Banks and sideslip").
+of each, and the rms of its 10 s integral, how far the state would drift in 10 s with nothing to
+correct it (docs/robustness.md, "Banks and sideslip", "Body rates").
 
     python benchmarks/kinematic_residuals.py real-jsbsim-faultfree [--seed 1] [--seconds 120]
 
@@ -70,8 +71,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--seconds", type=float, default=120.0)
     a = ap.parse_args()
+    sc = load_scenario(a.world)
+    ten_s = np.ones(int(round(10.0 / sc.dt_s)))
     for name, res in residuals(a.world, a.seed, a.seconds).items():
-        print(f"{name:36s} mean {res.mean():+.4f}  rms {res.std():.4f}")
+        drift = np.convolve(res, ten_s, "valid") * sc.dt_s
+        print(f"{name:36s} mean {res.mean():+.4f}  rms {res.std():.4f}  10 s drift rms {drift.std():.4f}")
 
 
 if __name__ == "__main__":

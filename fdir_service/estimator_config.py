@@ -47,7 +47,11 @@ LATERAL_ROWS = ("roll", "v")
 velocity along y over the ground (m/s). The kinematic model's climb rate takes them (an aircraft
 that banks and sideslips climbs at u sin(theta) - (v sin(phi) + w cos(phi)) cos(theta)); missing,
 they are 0 (wings level, no sideslip)."""
-INPUT_ROWS = IMU_ROWS + AIR_ROWS + LATERAL_ROWS
+BODY_RATE_ROWS = ("p", "r")
+"""The roll and yaw rates (rad/s, body axes; the gyro's x and z). With the roll and v, the kinematic
+model's velocity and attitude equations take the lateral terms of a 6-DOF aircraft (u' gains r v,
+w' -p v and g cos(theta) (cos(phi) - 1), theta' = q cos(phi) - r sin(phi)); missing, they are 0."""
+INPUT_ROWS = IMU_ROWS + AIR_ROWS + LATERAL_ROWS + BODY_RATE_ROWS
 """Rows a process model takes as inputs, in the order they extend the input vector."""
 THRUST_ROW = "throttle"
 """A derived row (`thrust.ThrustCheck`): the throttle the accelerometer implies minus the commanded

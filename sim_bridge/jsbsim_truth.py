@@ -87,6 +87,7 @@ _P = {  # short name -> JSBSim property
     "pdot": "accelerations/pdot-rad_sec2", "rdot": "accelerations/rdot-rad_sec2",
     "rpm": "propulsion/engine/propeller-rpm", "alpha": "aero/alpha-rad",
     "phi": "attitude/phi-rad", "v": "velocities/v-fps",
+    "p": "velocities/p-rad_sec", "r": "velocities/r-rad_sec",
 }
 
 _CARRIED = {  # initial condition <- the trimmed state it is set from (the wind is added to vn, vd)
@@ -203,13 +204,13 @@ class JSBSimTruth:
     def air_data(self) -> AirData:
         """JSBSim's true airspeed (m/s), the body-axis specific force [a_x, a_z] (m/s^2; the
         non-gravitational forces over the mass, as an accelerometer at the CG reads them) and the
-        NED (north, down) wind at the aircraft, turbulence included (m/s); the roll (rad) and the
-        body-y velocity over the ground (m/s)."""
+        NED (north, down) wind at the aircraft, turbulence included (m/s); the roll (rad), the
+        body-y velocity over the ground (m/s) and the roll and yaw rates (rad/s)."""
         g = self._get
         k = FT / g("mass")
         return AirData(g("vt") * FT, np.array([g("fx") * k, g("fz") * k]),
                        np.array([g("total_n") * FT, g("total_d") * FT]),
-                       np.array([g("phi"), g("v") * FT]))
+                       np.array([g("phi"), g("v") * FT, g("p"), g("r")]))
 
     # ------------------------------------------------------------------ internals
 

@@ -5,6 +5,7 @@ Sent per frame k (all stamped with the simulation time t_k; `time_boot_ms` = rou
   GPS_RAW_INT      alt (mm above MSL) = GNSS altitude measurement
   SCALED_PRESSURE  press_abs (hPa) = the barometer's static pressure (barometric formula)
   ATTITUDE         pitch (rad), pitchspeed (rad/s) = measured pitch and pitch rate
+                   (roll, rollspeed, yawspeed too when the world measures them, JSBSim's)
   ODOMETRY         child_frame_id MAV_FRAME_BODY_FRD; vx, vz (m/s) = measured body velocities u, w;
                    pose unknown (NaN) - the truth never goes on the wire
 and, once the autopilot has computed u_k, the actuator outputs stamped t_k:

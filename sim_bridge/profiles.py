@@ -20,7 +20,8 @@ pressure) and the autopilot's command into MAVLink message objects; `AutopilotLi
 Clocks: the simulation time t (s) is the boot time (time_boot_ms = round(t * 1000), time_usec
 since boot = round(t * 1e6)), so the service's frames and FDIR_ESTIMATEs keep the simulator's
 frame times. The internal simulation flies wings level, heading north (roll = yaw = 0); a world that
-measures the roll and the body-y velocity v (JSBSim's) sends them on ATTITUDE and in the NED velocity.
+measures the roll, the body-y velocity v and the roll and yaw rates p, r (JSBSim's) sends them on
+ATTITUDE (roll, rollspeed, yawspeed) and in the NED velocity.
 """
 
 from __future__ import annotations
@@ -150,9 +151,9 @@ class NativeMessages:
         theta, q = v.get("theta"), v.get("q")
         if theta is None and q is None:
             return None
-        roll = v.get("roll") or 0.0             # 0 unless the world measures it (wings level)
+        roll, p, r = (v.get(k) or 0.0 for k in ("roll", "p", "r"))   # 0 unless measured (wings level)
         return dialect.MAVLink_attitude_message(int(round(t * 1000.0)), roll, _nan_if_none(theta),
-                                                0.0, 0.0, _nan_if_none(q), 0.0)
+                                                0.0, p, _nan_if_none(q), r)
 
     @staticmethod
     def _odometry(t: float, v: Values, static_pressure_pa: float):
@@ -303,7 +304,8 @@ class _StockAutopilot:
 
     @staticmethod
     def _attitude(t: float, v: Values, static_pressure_pa: float):
-        """ATTITUDE: time_boot_ms; roll (0 unless measured) and pitch rad, pitchspeed rad/s; yaw 0."""
+        """ATTITUDE: time_boot_ms; roll (0 unless measured) and pitch rad; rollspeed, pitchspeed,
+        yawspeed rad/s (roll and yaw rates 0 unless measured); yaw 0."""
         return NativeMessages._attitude(t, v, static_pressure_pa)
 
     def _vfr_hud(self, t: float, v: Values, static_pressure_pa: float):

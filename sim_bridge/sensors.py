@@ -31,7 +31,7 @@ GM_TIME_CONSTANT_S = 1100.0
 GM_SAMPLE_S = 1.0
 
 _STATE_ROW = {"gnss_alt": 0, "baro_alt": 0, "u": 1, "w": 2, "theta": 3, "q": 4}
-AIR_ROWS = ("airspeed", "ax", "az", "roll", "v")
+AIR_ROWS = ("airspeed", "ax", "az", "roll", "v", "p", "r")
 """Rows measured from the truth's air data (`world.AirData`), not from z."""
 
 

@@ -87,13 +87,14 @@ class TruthEngine(Protocol):
 class AirData:
     """airspeed_mps: |air-relative velocity|; specific_force (2,): body [a_x, a_z] m/s^2 that an
     accelerometer measures (acceleration minus gravity); wind_ned (2,): (north, down) m/s of the
-    air at the aircraft, turbulence included; lateral (2,): the roll attitude (rad) and the body-y
-    velocity over the ground (m/s), 0 for the longitudinal internal aircraft (wings level)."""
+    air at the aircraft, turbulence included; lateral (4,): the roll attitude (rad), the body-y
+    velocity over the ground (m/s) and the roll and yaw rates p, r (rad/s), 0 for the longitudinal
+    internal aircraft (wings level)."""
 
     airspeed_mps: float
     specific_force: np.ndarray
     wind_ned: np.ndarray
-    lateral: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))
+    lateral: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(4))
 
 
 def make_truth(scenario: Scenario, params: AirframeParams, rng: np.random.Generator) -> TruthEngine:

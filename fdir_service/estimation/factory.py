@@ -60,7 +60,7 @@ from fdir_service.estimation.recipes import Recipe, recipe
 from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter, h_opt
 from fdir_service.estimation.resample import BelowEffectiveSize, EveryStep, resampler
 from fdir_service.estimation.sentinels import PriorSentinels, ThesisSentinels, prior_log_constants
-from fdir_service.estimator_config import LATERAL_ROWS, EstimatorConfig
+from fdir_service.estimator_config import BODY_RATE_ROWS, LATERAL_ROWS, EstimatorConfig
 
 FAULT_THRESHOLD_SIGMAS = 3.0
 """Mode-free filters (KF, RPF, RRPF, bootstrap) report P(|f_j| > 3 sigma_j), sigma_j the fault's
@@ -149,14 +149,19 @@ def build_imm(scenario: EstimatorConfig, x0: np.ndarray | None = None,
     return IMMKalman([f0, f1], M, np.array([1.0, 0.0]))
 
 
+def _input_positions(estimator: EstimatorConfig, rows: tuple[str, ...]) -> tuple[int, ...] | None:
+    """The positions of `rows` in a kinematic model's input u ([delta_e, delta_t] + the input rows),
+    or None unless the estimator lists them all."""
+    inputs = estimator.input_rows
+    return tuple(2 + inputs.index(r) for r in rows) if all(r in inputs for r in rows) else None
+
+
 def _process(estimator: EstimatorConfig, layout: FaultLayout):
     if estimator.settings.process_model == "kinematic":
         moment = PitchMoment(_airframe(estimator.airframe)) if "airspeed" in estimator.measurements else None
-        inputs = estimator.input_rows
-        lateral = tuple(2 + inputs.index(r) for r in LATERAL_ROWS) \
-            if all(r in inputs for r in LATERAL_ROWS) else None
         return KinematicProcess(estimator.dt_s, layout, moment, estimator.operating_point.airspeed_mps,
-                                lateral)
+                                _input_positions(estimator, LATERAL_ROWS),
+                                _input_positions(estimator, BODY_RATE_ROWS))
     lm = estimator_linear_model(estimator)
     if estimator.settings.process_model == "linear":
         return LinearProcess(lm, layout)

@@ -1,13 +1,14 @@
 """The estimator's rows split into what a filter observes and what it takes as input.
 
 An estimator may list input rows (`estimator_config.INPUT_ROWS`): the accelerometer (ax, az,
-body-axis specific force, m/s^2), the pitot's airspeed (m/s), the roll attitude (rad) and the
-body-y velocity (m/s). No filter observes them: a kinematic process model integrates the
-accelerometer like an input (SPEC section 2's velocity equations with the aerodynamic forces
-replaced by the measured ones), takes the dynamic pressure of its pitching moment from the airspeed
-and the tilt of its climb rate from the roll and v. `RowSplit.split(y, mask, u)` turns a frame over all rows
-(m,) into the observed rows (m_obs,) and the input [delta_e, delta_t] (2,), extended by the input
-rows (+k, `INPUT_ROWS` order) when the process takes them. A sample that did not arrive holds the
+body-axis specific force, m/s^2), the pitot's airspeed (m/s), the roll attitude (rad), the body-y
+velocity (m/s) and the roll and yaw rates p, r (rad/s). No filter observes them: a kinematic
+process model integrates the accelerometer like an input (SPEC section 2's velocity equations with
+the aerodynamic forces replaced by the measured ones), takes the dynamic pressure of its pitching
+moment from the airspeed, and the lateral terms of its climb rate, velocities and attitude from
+the roll, v, p and r. `RowSplit.split(y, mask, u)` turns a frame over all rows (m,) into the
+observed rows (m_obs,) and the input [delta_e, delta_t] (2,), extended by the input rows (+k,
+`INPUT_ROWS` order) when the process takes them. A sample that did not arrive holds the
 last one (before the first: the trim's specific force and airspeed).
 """
 
@@ -33,7 +34,7 @@ def trim_inputs(z_trim: np.ndarray) -> dict[str, float]:
     """Each input row's value in steady flight in still air at z_trim (5,)."""
     ax, az = trim_specific_force(z_trim)
     return {"ax": float(ax), "az": float(az), "airspeed": float(np.hypot(z_trim[1], z_trim[2])),
-            "roll": 0.0, "v": 0.0}
+            "roll": 0.0, "v": 0.0, "p": 0.0, "r": 0.0}
 
 
 class RowSplit:

@@ -13,8 +13,21 @@ with the roll attitude phi and the body-y velocity v as inputs too (`LATERAL_ROW
 "v") the altitude takes them. In JSBSim's moderate turbulence (phi 2.9 deg rms, v -1.1 +- 2.3 m/s)
 the longitudinal climb rate was 0.05 m/s off on average, 6 m of altitude in two minutes that the
 barometer was blamed for; with phi and v the mean error is 0.000 m/s and its spread 0.027 instead of
-0.137 m/s (`docs/robustness.md`, "Banks and sideslip"). The velocity and attitude equations'
-lateral terms (r v, p v, r sin(phi)) are left out: they moved no residual's mean beyond its noise.
+0.137 m/s (`docs/robustness.md`, "Banks and sideslip"). With the roll and yaw rates p, r as inputs
+as well (`BODY_RATE_ROWS`, rows "p" and "r": the gyro's x and z) the velocity and attitude equations
+are a 6-DOF aircraft's:
+
+    u' = a_x - q w + r v - g sin(theta)     w' = a_z + q u - p v + g cos(theta) cos(phi)
+    theta' = q cos(phi) - r sin(phi)
+
+Their means hardly move, and the frame-to-frame residuals are the accelerometer's noise; but in
+JSBSim's turbulence (p 11 deg/s rms, r 7 deg/s) the lateral terms are most of how far the
+attitude drifts in 10 s with nothing to correct it (0.19 -> 0.06 deg rms) and a fifth to a third
+of u's and w's (0.17 -> 0.14, 0.25 -> 0.16 m/s; `benchmarks/kinematic_residuals.py`). While an
+attitude fault hides the attitude, that drift is what the state is left with when it ends. The
+estimators in config/ do not list p and r: on JSBSim's flights the terms made the velocities and
+the attitude more accurate but did not lower the false alarms (measured: docs/robustness.md, "Body
+rates").
 
 u, w are the body-axis velocities over the ground (what GNSS-aided ODOMETRY reports), so wind and
 gusts appear only through the measured specific force: this model has nothing to mis-model in
@@ -70,7 +83,8 @@ class PitchMoment:
 class KinematicProcess:
     """x+ = x + dt f_kin(x, a) on the extended state (faults: random walk); inputs u (4,) =
     [delta_e, delta_t, a_x, a_z], or (5,) with the airspeed (m/s) when a `PitchMoment` drives q,
-    then the roll and the body-y velocity if listed (`lateral`).
+    then the roll and the body-y velocity if listed (`lateral`), then the roll and yaw rates
+    (`rates`, only with `lateral`).
 
     moment: None (q a random walk) or the pitch-moment model; v_ref (m/s): the airspeed of the
     one-frame elevator response `B_actuator` (5, nf) (zero without a moment).
@@ -81,12 +95,16 @@ class KinematicProcess:
     """The pitot's `pitot.PitotRow` (`use_wind`): the moment's airspeed per particle; None: the reading."""
 
     def __init__(self, dt: float, layout: FaultLayout, moment: PitchMoment | None = None,
-                 v_ref: float = 40.0, lateral: tuple[int, int] | None = None) -> None:
+                 v_ref: float = 40.0, lateral: tuple[int, int] | None = None,
+                 rates: tuple[int, int] | None = None) -> None:
         self.dt = float(dt)
         self.layout = layout
         self.moment = moment
         self.lateral = lateral
         """The positions of the roll (rad) and body-y velocity (m/s) in the input u; None: level."""
+        self.rates = rates if lateral is not None else None
+        """The positions of the roll and yaw rates p, r (rad/s) in u; None: the longitudinal
+        velocity and attitude equations."""
         self.B_actuator = np.zeros((N_AIRFRAME, layout.nf))
         self._elevator = np.flatnonzero(layout.actuator_input == 0)
         if moment is not None and self._elevator.size:
@@ -120,6 +138,20 @@ class KinematicProcess:
         phi, v = float(u[self.lateral[0]]), float(u[self.lateral[1]])
         return v * np.sin(phi) + vw * np.cos(phi)
 
+    def _add_body_rate_terms(self, out: np.ndarray, u: np.ndarray, q: np.ndarray, c: np.ndarray) -> None:
+        """out[1:4] += dt (r v, g cos(theta) (cos(phi) - 1) - p v, q (cos(phi) - 1) - r sin(phi)),
+        in place: the 6-DOF velocity and attitude terms (module docstring) for the cloud's q and
+        cos(theta at mid-step) c (N,). Nothing moves wings level with no sideslip or rates (the
+        longitudinal step bit for bit)."""
+        phi, v = float(u[self.lateral[0]]), float(u[self.lateral[1]])
+        p, r = float(u[self.rates[0]]), float(u[self.rates[1]])
+        if phi == 0.0 and v == 0.0 and p == 0.0 and r == 0.0:
+            return
+        h, tilt = self.dt, np.cos(phi) - 1.0
+        out[1] += h * (r * v)
+        out[2] += h * (G * tilt * c - p * v)
+        out[3] += h * (tilt * q - r * np.sin(phi))
+
     def propagate(self, X: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (4,)."""
         one = X.ndim == 1
@@ -135,6 +167,8 @@ class KinematicProcess:
         out[1] += h * (ax - q * vw - G * s)
         out[2] += h * (az + q * vu + G * c)
         out[3] += h * q
+        if self.rates is not None:
+            self._add_body_rate_terms(out, u, q, c)
         if self.moment is not None:
             de = self._elevator_of(X, float(u[0]))
             out[4] += h * self.moment.qdot(q, de, az, self._airspeed(X, float(u[4])))
