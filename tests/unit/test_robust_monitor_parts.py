@@ -119,6 +119,24 @@ def test_drift_predict_keeps_faults_within_their_prior():
     assert np.abs(X[5]).max() == pytest.approx(0.3)
 
 
+def test_the_pitch_rate_tail_gives_its_share_of_particles_scaled_noise_and_nothing_else():
+    n, N, q = 6, 100_000, 0.01
+    q_std = np.array([0.0, 0.0, 0.0, 0.0, q, 0.0])
+    args = (Still(), q_std, np.array([0.0]), np.array([np.inf]))
+    modes = np.zeros((1, N), dtype=bool)
+    plain = DriftPredict(*args).predict(np.zeros((n, N)), modes, np.zeros(4), np.random.default_rng(2))
+    off = DriftPredict(*args, q_tail=(0.0, 5.0)).predict(np.zeros((n, N)), modes, np.zeros(4),
+                                                         np.random.default_rng(2))
+    assert np.array_equal(plain, off)                       # share 0: the plain step, bit for bit
+    tail = DriftPredict(*args, q_tail=(0.05, 5.0)).predict(np.zeros((n, N)), modes, np.zeros(4),
+                                                           np.random.default_rng(2))
+    wide = np.abs(tail[4]) > 3.5 * q                        # 0.05 P(|z| > 0.7) + 0.95 P(|z| > 3.5)
+    assert wide.mean() == pytest.approx(0.05 * 0.4839 + 0.95 * 0.000465, rel=0.1)
+    assert (np.abs(plain[4]) > 3.5 * q).mean() < 0.001
+    assert np.std(tail[4]) == pytest.approx(q * np.sqrt(0.95 + 0.05 * 25.0), rel=0.03)
+    assert not tail[[0, 1, 2, 3, 5]].any()                  # only the pitch rate
+
+
 def test_robust_estimator_builds_a_kinematic_filter_with_drift(robust):
     f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
     assert f.parts.predict.process.kind == "kinematic"
