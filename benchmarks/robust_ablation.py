@@ -53,6 +53,8 @@ VARIANTS = {
                   _set_part("rate_sentinel", '"row"')),
     "no-drift": ("no drift / model-error mode: mode-0 entries evolve as in mode 1 and reset to 0 on "
                  "exit (parts.mode0 = \"reset_on_exit\")", _set_part("mode0", '"reset_on_exit"')),
+    "no-tail": ("no heavy tail on the pitch rate's process noise (parts.q_tail = [0, 1])",
+                _set_part("q_tail", "[0.0, 1.0]")),
 }
 
 
