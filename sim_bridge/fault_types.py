@@ -22,12 +22,19 @@ GNSS latency, baro / gyro bias); the barometer row is then converted through the
 actuators (`ActuatorFaults`, used by `world.Truth` and `jsbsim_truth.JSBSimTruth`):
 - bias           u_i += a;
 - jammed         while active u_i = (the input applied over the frame before onset) + a;
-- effectiveness  while active u_i = g u_i with g = min(max(a, 0), 1) (engine loss: delta_t, g = 0).
+- effectiveness  while active u_i = g u_i with g = min(max(a, 0), 1);
+- engine         (delta_t only) while active the propeller gives g = min(max(a, 0), 1) of its thrust:
+                 an engine that quits is g = 0, thrust ~0 while the command stays up. The internal
+                 aircraft's thrust k_T (k_m^2 delta_t^2 - V^2) (SPEC section 2) is scaled through the
+                 throttle that gives it, delta_t' = sqrt(g delta_t^2 + (1 - g) (V / k_m)^2), V the
+                 airspeed at the frame's start (an effectiveness g = 0 there is the model's windmill
+                 drag, k_T V^2: 1.5 g at 40 m/s); JSBSim's electric motor gets g delta_t, its
+                 propeller windmilling as JSBSim models it (`engine_out`).
 
 Truth (`Frame.faults`, `Trajectory.faults`, `/sim/truth`): per channel the additive-equivalent
 value that the estimator's fault entry estimates, 0 while inactive: bias a; stuck and blocked the
 noise-free reading minus the true noise-free reading; jammed and effectiveness the applied minus the
-commanded input (for effectiveness (g - 1) u_cmd); noisy k - 1.
+commanded input (for effectiveness (g - 1) u_cmd, for engine delta_t' - u_cmd); noisy k - 1.
 
 Activity (`activity`): a bias channel is active where its value is non-zero (as before: a ramp's
 first frame, 0, is fault-free); a typed channel wherever its profile is active, whatever its value
@@ -131,14 +138,22 @@ class SensorFaults:
         return reading - clean
 
 
+def scaled_command(u: float, g: float) -> float:
+    """An input u (SI) that keeps g of its effect, g clipped to [0, 1] (effectiveness)."""
+    return u * min(max(g, 0.0), 1.0)
+
+
 class ActuatorFaults:
     """The actuator faults of a world (every type, bias included) and their state (jam positions).
 
-    faults: the scenario's channels (nf); inputs [delta_e rad, delta_t 0..1].
+    faults: the scenario's channels (nf); inputs [delta_e rad, delta_t 0..1]. engine_out(delta_t, g)
+    -> the throttle that gives g (clipped to [0, 1]) of delta_t's thrust (the truth engine's;
+    default `scaled_command`).
     """
 
-    def __init__(self, faults: Sequence[FaultChannel]) -> None:
+    def __init__(self, faults: Sequence[FaultChannel], engine_out=scaled_command) -> None:
         self.nf = len(faults)
+        self.engine_out = engine_out
         self.channels = [(ACTUATORS.index(ch.target), j, ch.fault_type) for j, ch in enumerate(faults)
                          if ch.kind == "actuator"]
         self.reset()
@@ -163,11 +178,16 @@ class ActuatorFaults:
                 u[i] += values[j]
             elif not active[j]:
                 continue
-            elif kind == "jammed":
-                u[i] = self._jam(i, j, u_prev) + values[j]
             else:
-                u[i] *= min(max(float(values[j]), 0.0), 1.0)
+                u[i] = self._typed(i, j, kind, u[i], values, u_prev)
         return u
+
+    def _typed(self, i: int, j: int, kind: str, u_i: float, values: np.ndarray,
+               u_prev: np.ndarray) -> float:
+        """Input i (SI) under active typed channel j of `kind`, before it u_i."""
+        if kind == "jammed":
+            return self._jam(i, j, u_prev) + float(values[j])
+        return (self.engine_out if kind == "engine" else scaled_command)(u_i, float(values[j]))
 
     def commit(self, values: np.ndarray, active: np.ndarray | None, u_prev: np.ndarray) -> None:
         """After a frame flown with `applied`: remember each newly active jam's onset position."""
@@ -181,15 +201,16 @@ class ActuatorFaults:
     def truth(self, u_cmd: np.ndarray, values: np.ndarray, active: np.ndarray,
               u_prev: np.ndarray) -> np.ndarray:
         """(nf,) the additive-equivalent truth of the typed actuator channels (NaN elsewhere):
-        jammed and effectiveness applied - commanded ((g - 1) u_cmd); 0 while inactive."""
+        jammed, effectiveness and engine applied - commanded ((g - 1) u_cmd for effectiveness);
+        0 while inactive."""
         out = np.full(self.nf, np.nan)
         for i, j, kind in self.channels:
             if kind == "bias":
                 continue
             if not active[j]:
                 out[j] = 0.0
-            elif kind == "jammed":
-                out[j] = self._jam(i, j, u_prev) + float(values[j]) - float(u_cmd[i])
-            else:
+            elif kind == "effectiveness":
                 out[j] = (min(max(float(values[j]), 0.0), 1.0) - 1.0) * float(u_cmd[i])
+            else:
+                out[j] = self._typed(i, j, kind, float(u_cmd[i]), values, u_prev) - float(u_cmd[i])
         return out

@@ -38,14 +38,17 @@ PROFILE_SHAPES = ("step", "exponential", "ramp", "intermittent")
 WORLD_SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy", "blocked", "drift")
 """What a world sensor fault does to its row (`sim_bridge.fault_types`); "blocked" is the pitot's
 (airspeed row only)."""
-WORLD_ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness")
-"""What a world actuator fault does to its input (`sim_bridge.fault_types`)."""
+WORLD_ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness", "engine")
+"""What a world actuator fault does to its input (`sim_bridge.fault_types`); "engine" is the
+throttle's (delta_t only)."""
 STUCK_NOISE = ("kept", "none")
 """A stuck row's noise: the row's usual noise on top of the held value, or none."""
 _PURE_NUMBER_TYPES = {"noisy": "a noise multiplier k >= 1",
-                      "effectiveness": "a remaining gain g in [0, 1]"}
+                      "effectiveness": "a remaining gain g in [0, 1]",
+                      "engine": "a remaining share of the thrust g in [0, 1]"}
 """Types whose amplitude is a pure number (unit "1"), and what it is."""
-_AMPLITUDE_OK = {"noisy": lambda lo, hi: lo >= 1.0, "effectiveness": lambda lo, hi: lo >= 0.0 and hi <= 1.0}
+_AMPLITUDE_OK = {"noisy": lambda lo, hi: lo >= 1.0, "effectiveness": lambda lo, hi: lo >= 0.0 and hi <= 1.0,
+                 "engine": lambda lo, hi: lo >= 0.0 and hi <= 1.0}
 
 
 @dataclass(frozen=True)
@@ -79,8 +82,8 @@ class FaultChannel:
     `profile` is its time course in the world (summed components, SI); `unit` is for reports.
     `fault_type` (file key `type`) is what the profile's value does to the target
     (`sim_bridge.fault_types`): "bias" adds it (the default); sensors also "stuck", "noisy",
-    "blocked" (airspeed only); actuators "jammed", "effectiveness". `noise` ("kept" | "none"): a
-    stuck row's noise on top of the held value.
+    "blocked" (airspeed only); actuators "jammed", "effectiveness", "engine" (delta_t only).
+    `noise` ("kept" | "none"): a stuck row's noise on top of the held value.
     """
 
     id: str
@@ -263,6 +266,9 @@ def _fault_type(t: TomlTable, target: str) -> tuple[str, str]:
     if ftype == "blocked" and target != "airspeed":
         raise ConfigError(f"{t.key('type')}: \"blocked\" is the pitot's (target \"airspeed\"); for "
                           f"target {target!r} expected one of bias, stuck, noisy, got {ftype!r}")
+    if ftype == "engine" and target != "delta_t":
+        raise ConfigError(f"{t.key('type')}: \"engine\" is the throttle's (target \"delta_t\"); for "
+                          f"target {target!r} expected one of bias, jammed, effectiveness, got {ftype!r}")
     if ftype != "stuck" and t.peek("noise") is not None:
         raise ConfigError(f"{t.key('noise')}: only a stuck fault has a noise option; expected no "
                           f"noise key for a {ftype} fault, got {t.peek('noise')!r}")

@@ -3,13 +3,13 @@ have types (stuck, noisy, jammed, ...), how each type is detected, isolated and 
 
 An injected fault is an (item, type): its channel's target (a measurement row or an input) and its
 `fault_type` (sensor "bias" | "stuck" | "noisy" | "blocked", actuator "bias" | "jammed" |
-"effectiveness"). A monitored entry is the same pair (`FaultSpec.target`, `FaultSpec.fault_type`).
+"effectiveness" | "engine"). A monitored entry is the same pair (`FaultSpec.target`, `FaultSpec.fault_type`).
 Per episode (a stretch of the channel's active frames; activity from the profile's intervals,
 `channel_active`, since a noisy k or an effectiveness g can leave the additive-equivalent value ~0
 while active), with the service's declarations (`sim_bridge.yardstick.declarations`) and the
 window from onset to GRACE_S after the end (`sim_bridge.yardstick`):
-- the **right** entries have the same item and a matching type (`type_matches`: equal, or a
-  "blocked" pitot answered by a "stuck" entry);
+- the **right** entries have the same item and a matching type (`type_matches`: equal, a
+  "blocked" pitot answered by a "stuck" entry, an "engine" loss by the throttle's "effectiveness");
 - declarations are by item, as the service makes them (`fdir_service.runtime.items`): P(item
   faulty) combines its entries' P (exclusive additive types add up, a noisy one is independent),
   through the service's hysteresis; the type declared is the item's most probable entry's at the
@@ -45,9 +45,9 @@ from sim_bridge.yardstick import (
     first_standing,
 )
 
-UNITLESS_TYPES = ("noisy", "effectiveness")
+UNITLESS_TYPES = ("noisy", "effectiveness", "engine")
 """Types whose additive-equivalent value is a factor minus 1 (k - 1, g - 1): no unit."""
-ANSWERS: dict[str, tuple[str, ...]] = {"blocked": ("blocked", "stuck")}
+ANSWERS: dict[str, tuple[str, ...]] = {"blocked": ("blocked", "stuck"), "engine": ("effectiveness",)}
 """World type -> the estimator types that answer it rightly (default: the same type only)."""
 MISSED = "missed"
 SETTLE_S = 2.0

@@ -168,8 +168,22 @@ class Truth:
         else:
             self.model = None
             self.trim = _cached(_trim, params, tc.airspeed_mps, tc.altitude_m)
-        self.actuator_faults = ActuatorFaults(scenario.faults)
+        self.actuator_faults = ActuatorFaults(scenario.faults, engine_out=self.engine_out)
         self.reset()
+
+    def engine_out(self, delta_t: float, g: float) -> float:
+        """The throttle at which the airframe's propeller gives g (clipped to [0, 1]) of the thrust of
+        delta_t at the frame's airspeed: k_T (k_m^2 d'^2 - V^2) = g k_T (k_m^2 delta_t^2 - V^2)
+        (SPEC section 2), so g = 0 is zero thrust, not the model's windmill drag at delta_t = 0."""
+        g = min(max(g, 0.0), 1.0)
+        zero = self.airspeed() / self.params.k_motor
+        return math.sqrt(g * delta_t * delta_t + (1.0 - g) * zero * zero)
+
+    def airspeed(self) -> float:
+        """|air-relative velocity| (m/s) now, in the wind and gust held over the frame."""
+        z = self.z
+        wb = ned_to_body(self.wind[0], self.wind[1], float(z[3])) + self.gust[:2]
+        return math.hypot(z[1] - wb[0], z[2] - wb[1])
 
     def reset(self) -> None:
         """Back to trim (and the wind's clock to 0; the turbulence restarts from its stream)."""

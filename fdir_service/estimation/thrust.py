@@ -10,9 +10,9 @@ with f_x = (C_L sin(alpha) - C_D cos(alpha)) qbar S / m the aerodynamic force pe
 the angle of attack read from the lift the accelerometer measures (as `kinematic.PitchMoment`
 does). Solved for the throttle, the measured a_x, a_z and the pitot's V give the throttle the
 propeller is delivering; minus the commanded one it is a derived row ("throttle") that a throttle
-fault entry (bias, jammed, effectiveness: an engine loss is g = 0) adds to directly. What the
-airframe file gets wrong of the drag and the propeller is slow: the throttle fault's mode-0 drift
-carries it. At the Aerosonde's cruise one unit of throttle is ~65 m/s^2 of a_x, so the
+fault entry (bias, jammed, effectiveness: an engine that quits reads g = V / (k_m u)) adds to
+directly. What the airframe file gets wrong of the drag and the propeller is slow: the throttle
+fault's mode-0 drift carries it. At the Aerosonde's cruise one unit of throttle is ~65 m/s^2 of a_x, so the
 accelerometer's 0.3 m/s^2 is ~0.005 of throttle.
 """
 

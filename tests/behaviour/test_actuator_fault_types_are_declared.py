@@ -1,7 +1,8 @@
 """The catalogue estimator in moderate turbulence, flying (closed loop) through an actuator fault
-of each type at 10 s: the engine quits, the elevator binds where it is, the elevator keeps 30 % of
-its deflection. The item is declared as the service would (its P over its types, the declare
-hysteresis) within the issue's 2 s, the engine loss as a loss of effectiveness with g near 0."""
+of each type at 10 s: the engine quits (its thrust to 0), the elevator binds where it is, the
+elevator keeps 30 % of its deflection. The item is declared as the service would (its P over its
+types, the declare hysteresis) within the issue's 2 s, the engine loss as the throttle's loss of
+effectiveness with the gain the world's engine leaves."""
 
 from __future__ import annotations
 
@@ -41,11 +42,18 @@ def first_declaration(tr, sc, target: str) -> tuple[float, str, float]:
     return float(tr.t[k]), entries[j].type, float(tr.outputs[settle].value_of(j))
 
 
-def test_an_engine_that_quits_is_declared_within_a_second_with_its_gain_near_zero():
+def test_an_engine_that_quits_is_declared_within_2_s_with_the_gain_it_leaves():
     tr, sc = flight("real-engine", "dt_eff", 0.0, 16.0)
     t, kind, g = first_declaration(tr, sc, "delta_t")
-    assert ONSET_S <= t < ONSET_S + 1.0
-    assert kind == "effectiveness" and g < 0.3                  # the true gain is 0
+    assert ONSET_S <= t < ONSET_S + 2.0
+    assert kind == "effectiveness" and g < 0.8
+    # zero thrust is the throttle V / k_m (~0.5 of the saturated command in the model's propeller,
+    # SPEC section 2): the gain read over the fault's last 2 s is the one the world applied
+    j = [f.id for f in sc.estimator.faults].index("dt_eff")
+    late = (tr.t >= 14.0) & (tr.t < 16.0)
+    read = np.mean([tr.outputs[k].value_of(j) for k in np.flatnonzero(late)])
+    applied = np.mean(1.0 + tr.faults[late, 0] / tr.u[late, 1])
+    assert 0.3 < applied < 0.7 and abs(read - applied) < 0.1
 
 
 @pytest.mark.parametrize("fault_id, amplitude, end_s", [("de_jam", 0.0, 14.0), ("de_eff", 0.3, 18.0)])

@@ -1,6 +1,6 @@
 """An engine that quits, flown by the simulator speaking as a stock ArduPlane, into `fdir run` with
 the fault catalogue (config/estimators/aerosonde-catalogue.toml), reaches a stock ground station
-as a typed STATUSTEXT ("FDIR dt effectiveness 0% ...") and a typed FDIR_ESTIMATE item."""
+as a typed STATUSTEXT ("FDIR dt effectiveness 47% ...") and a typed FDIR_ESTIMATE item."""
 
 from __future__ import annotations
 

@@ -211,7 +211,7 @@ def test_effectiveness_scales_the_command():
     assert np.all(f[~on, 0] == 0.0)
 
 
-def test_engine_loss_applies_zero_throttle_and_is_an_active_fault():
+def test_effectiveness_zero_applies_zero_throttle_and_is_an_active_fault():
     sc = _scenario([_fault("eng", "delta_t", "effectiveness", 0.0)])
     t, uc, ua, f, act = _fly(sc)
     on = _frames(t)
@@ -223,6 +223,34 @@ def test_engine_loss_applies_zero_throttle_and_is_an_active_fault():
     np.testing.assert_array_equal(tr.faults[on, 0], -tr.u[on, 1])
     va = np.hypot(tr.z[:, 1], tr.z[:, 2])
     assert va[on][-1] < va[0] - 1.0 or -tr.z[on, 0][-1] < 499.0   # it sinks or slows without thrust
+
+
+def test_an_engine_that_quits_gives_no_thrust_rather_than_the_windmill_drag():
+    sc = _scenario([_fault("eng", "delta_t", "engine", 0.0)])
+    st = SimStepper(sc, 0)
+    ap = default_autopilot(sc, st.airframe)
+    ap.reset()
+    p = st.truth.params
+    for _ in range(int(round(5.0 / sc.dt_s))):          # 3 s into the fault (onset 2 s)
+        fr = st.frame()
+        u = ap.update(fr.t, fr.autopilot_view(fr.z_true))
+        f = st.fault_truth(u)
+        va = st.truth.airspeed()
+        st.advance(u)
+    applied = st.truth.u_applied[1]
+    assert u[1] > 0.4 and applied < u[1] - 0.1                  # the command stays up
+    thrust = p.rho * p.S_prop * p.C_prop * ((p.k_motor * applied) ** 2 - va ** 2) / (2.0 * p.m)
+    assert abs(thrust) < 1e-9                                    # SPEC section 2's k_T (k_m^2 d^2 - V^2)
+    assert applied == pytest.approx(va / p.k_motor) and f[0] == pytest.approx(applied - u[1])
+
+
+def test_an_engine_at_half_thrust_keeps_half_of_the_propeller_force():
+    sc = _scenario([_fault("eng", "delta_t", "engine", 0.5)])
+    truth = SimStepper(sc, 0).truth
+    zero = truth.airspeed() / truth.params.k_motor
+    d = truth.engine_out(0.9, 0.5)
+    assert d * d - zero * zero == pytest.approx(0.5 * (0.9 * 0.9 - zero * zero))
+    assert truth.engine_out(0.9, 1.0) == pytest.approx(0.9) and truth.engine_out(0.9, -1.0) == zero
 
 
 # ----------------------------------------------------------------------------- bias, unchanged
@@ -252,6 +280,9 @@ def test_bias_truth_and_activity_are_the_profile_values():
      r"\[0, 1\]"),
     (_fault("dt", "delta_t", "effectiveness", -0.1), r"world\.faults\[0\]\.profile\[0\]\.amplitude",
      r"\[0, 1\]"),
+    (_fault("de", "delta_e", "engine", 0.0), r"world\.faults\[0\]\.type", "throttle"),
+    (_fault("dt", "delta_t", "engine", 2.0), r"world\.faults\[0\]\.profile\[0\]\.amplitude",
+     r"share of the thrust g in \[0, 1\]"),
 ])
 def test_bad_fault_types_name_the_key_and_expected_value(fault, key, expect):
     with pytest.raises(ConfigError, match=key) as exc:
