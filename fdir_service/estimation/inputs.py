@@ -87,6 +87,7 @@ class RowSplit:
         y_obs, mask_obs = y[self.observed], mask[self.observed]
         held = self.hold
         if self.pitot is not None:              # hold = [ax, az, airspeed, ...]: the trusted airspeed
+            self.pitot.command(float(u[1]))
             held = held.copy()
             held[2] = self.pitot.trusted(held[2])
         if self.thrust is not None:             # the derived throttle row

@@ -26,6 +26,13 @@ entry is the wind plus the pitot's offset. `PitotRow` is the wind's model and th
   offset that stands longer than the gusts last is a fault, not wind; a stuck or blocked pitot's
   entry anti-tracks the wind's move (its reading does not see the air), so the wind keeps drifting
   unobserved under a held pitot and after a long fault the cloud spans the winds it may have become;
+- `command`: the hold needs the throttle's authority. While the throttle command sits at a limit
+  (`THROTTLE_LIMITS`: an autopilot at full throttle after an engine loss, or idle in a dive), and
+  for `HOLD_SETTLE_S` after it leaves it (the airspeed loop's transient: an engine that comes back
+  at full throttle overshoots the airspeed), no airspeed is held: the step is flown with kappa = 0
+  and the wind's own gust (`free_sigma`, `wind_gust_sigma`), and M is re-expressed as the mean of
+  the new c (the head wind, then the airspeed again when the hold takes over), so the airspeed the
+  hold returns to is the one the aircraft has, not the one it had before it lost its engine;
 - `follow` / `trusted`: the pitching moment and the thrust check take the airspeed less the pitot's
   estimated fault, so a blocked pitot does not make the elevator or the engine look faulty.
 """
@@ -38,6 +45,12 @@ import numpy as np
 
 from fdir_service.estimation.layout import N_AIRFRAME
 
+THROTTLE_LIMITS = (0.0, 1.0)
+"""The throttle command's range: at either end the autopilot has no authority left to hold the
+airspeed (`PitotRow.command`)."""
+HOLD_SETTLE_S = 3.0
+"""s: after the throttle leaves a limit, the time an airspeed loop takes to bring the airspeed back
+before the hold is assumed again (a few seconds for a small UAV; set a priori, not fitted)."""
 PITOT_MAX_PITCH_RAD = math.radians(25.0)
 PITOT_MAX_RATE_RADPS = math.radians(15.0)
 """Beyond this pitch attitude (rad) or pitch rate (rad/s) the pitot is not read: V ~ u + W holds near
@@ -64,12 +77,13 @@ class PitotRow:
     entries (k,): the fault entries on the pitot; wind: the wind's entry (-1: none); held (h,): the
     stuck and blocked entries on the pitot; row: the derived airspeed row among the observed rows;
     sigma (m/s): its noise (the spread of the wind's start); dt (s); gust (sigma m/s, tau s, tau_m s);
-    hold: kappa, the share of a ground-speed change that is the wind's (parts.wind_hold).
+    hold: kappa, the share of a ground-speed change that is the wind's (parts.wind_hold); free_sigma
+    (m/s): the gust's sigma while the hold lets go (`command`; None: gust's sigma).
     """
 
     def __init__(self, entries: np.ndarray, wind: int, held: np.ndarray, row: int, sigma: float,
                  dt: float = 0.05, gust: tuple[float, float, float] = (1.5, 10.0, 60.0),
-                 hold: float = 0.0) -> None:
+                 hold: float = 0.0, free_sigma: float | None = None) -> None:
         self.entries = np.asarray(entries, dtype=int)
         self.wind = int(wind)
         self.held = np.asarray(held, dtype=int)
@@ -78,12 +92,23 @@ class PitotRow:
         g_sigma, tau, tau_m = (float(v) for v in gust)
         self.a = math.exp(-dt / tau)
         self.step_sigma = g_sigma * math.sqrt(1.0 - self.a * self.a)
+        free = g_sigma if free_sigma is None else float(free_sigma)
+        self.free_step_sigma = free * math.sqrt(1.0 - self.a * self.a)
         self.mean_rate = min(dt / tau_m, 1.0)
         self.hold = float(hold)
         """kappa (0..1): the share of the ground speed's predicted change that the wind takes (`evolve`)."""
         self.mean: float | None = None
         """m/s: the mean M the gusts return to, of W + kappa u: the mean wind (kappa = 0), the mean
         airspeed (kappa = 1) (None before the first pitot reading)."""
+        self.dt = float(dt)
+        self.authority = True
+        """False while the throttle command sits at a limit, and HOLD_SETTLE_S after (`command`): no
+        airspeed is held."""
+        self.settle_frames = math.ceil(HOLD_SETTLE_S / self.dt - 1e-9)
+        self.off_limit = self.settle_frames
+        """Frames since the throttle command last sat at a limit (up to settle_frames)."""
+        self.kappa = self.hold
+        """The kappa that M is the mean for (`hold`, or 0 while the hold lets go)."""
         self.error = 0.0
         """m/s: the pitot's estimated fault after the last step (`follow`)."""
 
@@ -91,6 +116,13 @@ class PitotRow:
         """True when the pitot row may be read at the attitude theta (rad) and pitch rate q (rad/s)
         (None or not finite: not measured, no limit)."""
         return _within(theta, PITOT_MAX_PITCH_RAD) and _within(q, PITOT_MAX_RATE_RADPS)
+
+    def command(self, throttle: float) -> None:
+        """This frame's throttle command (0..1, NaN: unknown): whether the autopilot can hold the
+        airspeed (off the limits for HOLD_SETTLE_S)."""
+        at_limit = not THROTTLE_LIMITS[0] < throttle < THROTTLE_LIMITS[1] and math.isfinite(throttle)
+        self.off_limit = 0 if at_limit else min(self.off_limit + 1, self.settle_frames)
+        self.authority = self.off_limit >= self.settle_frames
 
     def trusted(self, airspeed: float) -> float:
         """The airspeed (m/s) the models take: the reading less the estimated fault."""
@@ -109,25 +141,42 @@ class PitotRow:
             return
         W = X[N_AIRFRAME + self.wind]
         free = ~modes[self.wind]
-        c = self._held_sum(W, X[1] if u_before is None else u_before)
-        c_next = self.mean + self.a * (c - self.mean) + self.step_sigma * rng.standard_normal(W.size)
-        step = (c_next - self.hold * X[1] if self.hold > 0.0 else c_next) - W     # W+ = c+ - kappa u+
+        u0 = X[1] if u_before is None else u_before
+        fault_free = free & ~modes[self.held].any(axis=0)
+        kappa = self._kappa(W, u0, fault_free)
+        c = self._held_sum(W, u0, kappa)
+        sigma = self.step_sigma if kappa == self.hold else self.free_step_sigma
+        c_next = self.mean + self.a * (c - self.mean) + sigma * rng.standard_normal(W.size)
+        step = (c_next - kappa * X[1] if kappa > 0.0 else c_next) - W     # W+ = c+ - kappa u+
         step *= free
         W += step
         X[N_AIRFRAME + self.held] -= step * modes[self.held]
-        self._follow_mean(self._held_sum(W, X[1]), free & ~modes[self.held].any(axis=0))
+        self._follow_mean(self._held_sum(W, X[1], kappa), fault_free)
 
-    def _held_sum(self, W: np.ndarray, u: np.ndarray) -> np.ndarray:
+    def _kappa(self, W: np.ndarray, u: np.ndarray, fault_free: np.ndarray) -> float:
+        """This step's kappa: `hold`, or 0 while the throttle has no authority (`command`); when it
+        changes, M becomes the mean of the new c = W + kappa u (the fault-free particles', if they
+        are most of the cloud; else every particle's)."""
+        kappa = self.hold if self.authority else 0.0
+        if kappa != self.kappa:
+            c = self._held_sum(W, u, kappa)
+            self.mean = float(c[fault_free].mean() if 2 * np.count_nonzero(fault_free) > c.size else c.mean())
+            self.kappa = kappa
+        return kappa
+
+    @staticmethod
+    def _held_sum(W: np.ndarray, u: np.ndarray, kappa: float) -> np.ndarray:
         """c = W + kappa u (m/s, (N,)): the quantity whose gusts return to the mean M, the head wind
         (kappa = 0) or, under an airspeed hold (kappa = 1), the airspeed u + W."""
-        return W + self.hold * u if self.hold > 0.0 else W
+        return W + kappa * u if kappa > 0.0 else W
 
     def _start(self, X: np.ndarray, y: np.ndarray, mask: np.ndarray, rng: np.random.Generator) -> None:
         """On the first frame whose pitot arrived: X[wind] = y_pitot - u + N(0, sigma^2) per particle."""
         if not mask[self.row] or not np.isfinite(y[self.row]):
             return
         X[N_AIRFRAME + self.wind] = y[self.row] - X[1] + self.sigma * rng.standard_normal(X.shape[1])
-        self.mean = float(np.mean(self._held_sum(X[N_AIRFRAME + self.wind], X[1])))
+        self.kappa = self.hold if self.authority else 0.0
+        self.mean = float(np.mean(self._held_sum(X[N_AIRFRAME + self.wind], X[1], self.kappa)))
 
     def _follow_mean(self, c: np.ndarray, fault_free: np.ndarray) -> None:
         """M follows the fault-free particles' mean of c (W + kappa u, m/s) while they are most of
@@ -173,4 +222,4 @@ def pitot_row(estimator) -> PitotRow:
     sigma = estimator.sigma[estimator.measurements.index("airspeed")]
     return PitotRow(np.array(entries), wind_entry(faults), np.array(held, dtype=int),
                     estimator.observed.index("airspeed"), sigma, estimator.dt_s,
-                    (gust_sigma(s), s.wind_gust_tau_s, s.wind_mean_tau_s), s.wind_hold)
+                    (gust_sigma(s), s.wind_gust_tau_s, s.wind_mean_tau_s), s.wind_hold, s.wind_gust_sigma)

@@ -18,7 +18,7 @@ from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.inputs import G
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
-from fdir_service.estimation.pitot import PitotRow, gust_sigma, pitot_row, wind_entry
+from fdir_service.estimation.pitot import HOLD_SETTLE_S, PitotRow, gust_sigma, pitot_row, wind_entry
 from fdir_service.estimator_config import estimator_document, load_estimator, parse_estimator
 
 ROWS = ("u", "airspeed")
@@ -122,6 +122,33 @@ def test_under_an_airspeed_hold_the_wind_takes_the_ground_speeds_change_and_a_he
     np.testing.assert_allclose(MEAS.predict(X)[1], before)                # healthy: the airspeed held
     np.testing.assert_allclose(X[N_AIRFRAME + BLK, 1], 1.0)               # blocked: held, wind moves anyway
     assert part.hold == 1.0 and load_estimator("aerosonde-catalogue").settings.wind_hold == 1.0
+
+
+def test_at_full_throttle_the_hold_lets_go_and_takes_the_airspeed_it_finds_when_it_holds_again():
+    part = PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, dt=0.05,
+                    gust=(0.0, 10.0, 1e9), hold=1.0, free_sigma=0.0)   # no gusts, a mean that stays
+    part.mean = 40.0                                 # the held airspeed
+    X = cloud(2)
+    modes = np.zeros((LAYOUT.nf, 2), dtype=bool)
+    rng = np.random.default_rng(4)
+    part.command(1.0)                                # full throttle: no authority over the airspeed
+    assert not part.authority
+    for _ in range(20):                              # the engine is gone: 2 m/s slower over 1 s
+        u_before = X[1].copy()
+        X[1] -= 0.1
+        part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), rng, u_before)
+    np.testing.assert_allclose(X[N_AIRFRAME + WIND], [8.0, 8.0])          # the wind stays ...
+    np.testing.assert_allclose(MEAS.predict(X)[1], [38.0, 38.0])          # ... the airspeed follows u
+    assert part.kappa == 0.0 and part.mean == pytest.approx(8.0)           # M: the head wind now
+    for k in range(int(round(HOLD_SETTLE_S / 0.05))):   # off the limit: the airspeed loop settles
+        part.command(0.6)
+        assert part.authority == (k + 1 == round(HOLD_SETTLE_S / 0.05))
+    u_before = X[1].copy()
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), rng, u_before)
+    assert part.kappa == 1.0 and part.mean == pytest.approx(38.0)          # M: the airspeed it found
+    np.testing.assert_allclose(MEAS.predict(X)[1], [38.0, 38.0])
+    part.command(float("nan"))                       # no command known: the hold stays assumed
+    assert part.authority
 
 
 def test_under_a_hold_the_airspeeds_gusts_have_the_held_sigma_not_the_winds():
