@@ -29,8 +29,9 @@ def flight(world: str, fault_id: str, amplitude: float, end_s: float, seconds: f
     return fly(sc, "RJMRPF", 1), sc
 
 
-def first_declaration(tr, sc, target: str) -> tuple[float, str, float]:
-    """(time s, type, user-facing value) of the first declaration of the item watching target."""
+def first_declaration(tr, sc, target: str) -> tuple[float, str, float, str]:
+    """(time s, type, user-facing value 1 s later, type 2 s later) of the first declaration of the
+    item watching target."""
     entries = [kind_of(f) for f in sc.estimator.faults]
     names = [f.id for f in sc.estimator.faults]
     P = np.array([o.fault_probability for o in tr.outputs])
@@ -39,14 +40,16 @@ def first_declaration(tr, sc, target: str) -> tuple[float, str, float]:
     k = int(np.flatnonzero(declared(tr.t, view.prob[:, i], Hysteresis()))[0])
     j = int(view.best[k, i])
     settle = min(k + 20, len(tr.t) - 1)                  # the value 1 s after the declaration
-    return float(tr.t[k]), entries[j].type, float(tr.outputs[settle].value_of(j))
+    later = int(view.best[min(k + 40, len(tr.t) - 1), i])
+    return float(tr.t[k]), entries[j].type, float(tr.outputs[settle].value_of(j)), entries[later].type
 
 
 def test_an_engine_that_quits_is_declared_within_2_s_with_the_gain_it_leaves():
     tr, sc = flight("real-engine", "dt_eff", 0.0, 16.0)
-    t, kind, g = first_declaration(tr, sc, "delta_t")
+    t, kind, _, settled = first_declaration(tr, sc, "delta_t")
     assert ONSET_S <= t < ONSET_S + 2.0
-    assert kind == "effectiveness" and g < 0.8
+    # at a steady command a lost gain is an offset: the kind is told as the autopilot opens the throttle
+    assert kind in ("bias", "effectiveness") and settled == "effectiveness"
     # zero thrust is the throttle V / k_m (~0.5 of the saturated command in the model's propeller,
     # SPEC section 2): the gain read over the fault's last 2 s is the one the world applied
     j = [f.id for f in sc.estimator.faults].index("dt_eff")
@@ -56,9 +59,24 @@ def test_an_engine_that_quits_is_declared_within_2_s_with_the_gain_it_leaves():
     assert 0.3 < applied < 0.7 and abs(read - applied) < 0.1
 
 
+@pytest.mark.parametrize("run", [1, 2, 3])
+def test_an_engine_that_comes_back_leaves_nothing_declared(run):
+    """Without an airspeed hold at full throttle the pitot was blamed for the airspeed the engine
+    lost and regained; without item-level fault-free values the throttle kept the part of the loss
+    its bias entry learnt (docs/faults.md, "real-engine")."""
+    _, sc = flight("real-engine", "dt_eff", 0.0, 18.0, seconds=32.0)
+    tr = fly(sc, "RJMRPF", run)
+    P = np.array([o.fault_probability for o in tr.outputs])
+    view = item_view(P, [kind_of(f) for f in sc.estimator.faults], [f.id for f in sc.estimator.faults])
+    after = tr.t >= 18.0 + 3.0
+    standing = [name for i, name in enumerate(view.names)
+                if declared(tr.t, view.prob[:, i], Hysteresis())[after].any()]
+    assert standing == []
+
+
 @pytest.mark.parametrize("fault_id, amplitude, end_s", [("de_jam", 0.0, 14.0), ("de_eff", 0.3, 18.0)])
 def test_an_elevator_that_binds_or_weakens_is_declared_within_2_s(fault_id, amplitude, end_s):
     tr, sc = flight("real-actuators", fault_id, amplitude, end_s)
-    t, kind, _ = first_declaration(tr, sc, "delta_e")
+    t, kind, _, _ = first_declaration(tr, sc, "delta_e")
     assert ONSET_S <= t < ONSET_S + 2.0
     assert kind in ("bias", "jammed", "effectiveness")
