@@ -117,7 +117,8 @@ class DriftMemory:
     With typed faults (`share_items`) an entry's mode 0 is its item's: no additive type of the item
     in mode 1. Otherwise, while another type held a fault, the entry's fault-free particles took part
     of it (a throttle bias entry learnt -0.1 of an engine loss that its effectiveness entry held,
-    and after the engine came back every exit mispredicted the throttle by that much)."""
+    and after the engine came back every exit mispredicted the throttle by that much). The pitot's
+    wind keeps its own: its fault-free value is the wind, which moves under any pitot fault."""
 
     def __init__(self, nf: int) -> None:
         self.value = np.zeros(nf)
@@ -344,13 +345,15 @@ class MarkovJump:
             self.switch.apply(F, modes, reset_to, rng)
         return self.transition.log_weight_correction(before, modes, avail)
 
-    def use_types(self, switch) -> None:
+    def use_types(self, switch, own: tuple[int, ...] = ()) -> None:
         """For an estimator with typed faults (`factory._typed`): the `fault_types.TypeSwitch` (or
-        None) and `given_fault` on."""
+        None) and `given_fault` on; the items' entries share their fault-free mode in the
+        `DriftMemory`, except the entries `own` (the pitot's wind: a state of the air, not an offset)."""
         self.switch = switch
         self.given_fault = True
         if self.drift is not None and switch is not None and switch.pairs.size:
-            self.drift.share_items(switch.pairs)
+            pairs = switch.pairs
+            self.drift.share_items(pairs[~np.isin(pairs[:, 0], own)])
 
     def pin(self, X: np.ndarray, modes: np.ndarray) -> None:
         """Mode-0 fault entries back to 0 (forced_zero), in place."""
