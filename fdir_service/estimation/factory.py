@@ -296,7 +296,7 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     pairs = sibling_pairs(layout)
     switch = TypeSwitch(pairs, estimator.settings.pi_switch, evolution, layout.sensor_row) \
         if pairs.size or evolution.stuck.size else None
-    parts.jump.use_types(switch, own=(wind_entry(estimator.faults),))
+    parts.jump.use_types(switch)
     parts.predict = TypedPredict(parts.predict, evolution, layout)
     noisy = evolution.noisy
     rows = np.maximum(layout.sensor_row, layout.noisy_row)

@@ -112,29 +112,14 @@ class DriftMemory:
     """The fault-free value of each fault entry, for exits to return to (parts.mode0 = "drift"):
     the mode-0 particles' mean, updated only while mode 0 holds most of the weight. During a fault
     the few mode-0 particles left are no estimate of the drift (an elevator's 0.9 deg of mis-trim
-    in a dispersed airframe was lost, and after the fault mode 1, which still held it, won).
-
-    With typed faults (`share_items`) an entry's mode 0 is its item's: no additive type of the item
-    in mode 1. Otherwise, while another type held a fault, the entry's fault-free particles took part
-    of it (a throttle bias entry learnt -0.1 of an engine loss that its effectiveness entry held,
-    and after the engine came back every exit mispredicted the throttle by that much). The pitot's
-    wind keeps its own: its fault-free value is the wind, which moves under any pitot fault."""
+    in a dispersed airframe was lost, and after the fault mode 1, which still held it, won)."""
 
     def __init__(self, nf: int) -> None:
         self.value = np.zeros(nf)
-        self.items: np.ndarray | None = None
-        """(nf, nf) 1 where two entries are additive types of one item (and on the diagonal)."""
-
-    def share_items(self, pairs: np.ndarray) -> None:
-        """Entries a, b of each pair (p, 2) (`fault_types.sibling_pairs`) share their mode 0."""
-        items = np.eye(self.value.size)
-        items[pairs[:, 0], pairs[:, 1]] = 1.0
-        self.items = items
 
     def update(self, F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Take this step's mode-0 means where mode 0 has > half the weight; returns value (nf,)."""
-        faulty = modes if self.items is None else (self.items @ modes) > 0.0
-        mean, share = mode0_mean(F, faulty, w)
+        mean, share = mode0_mean(F, modes, w)
         np.copyto(self.value, mean, where=share > 0.5)
         return self.value
 
@@ -345,15 +330,11 @@ class MarkovJump:
             self.switch.apply(F, modes, reset_to, rng)
         return self.transition.log_weight_correction(before, modes, avail)
 
-    def use_types(self, switch, own: tuple[int, ...] = ()) -> None:
+    def use_types(self, switch) -> None:
         """For an estimator with typed faults (`factory._typed`): the `fault_types.TypeSwitch` (or
-        None) and `given_fault` on; the items' entries share their fault-free mode in the
-        `DriftMemory`, except the entries `own` (the pitot's wind: a state of the air, not an offset)."""
+        None) and `given_fault` on."""
         self.switch = switch
         self.given_fault = True
-        if self.drift is not None and switch is not None and switch.pairs.size:
-            pairs = switch.pairs
-            self.drift.share_items(pairs[~np.isin(pairs[:, 0], own)])
 
     def pin(self, X: np.ndarray, modes: np.ndarray) -> None:
         """Mode-0 fault entries back to 0 (forced_zero), in place."""

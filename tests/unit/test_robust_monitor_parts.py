@@ -353,27 +353,6 @@ def test_drift_memory_keeps_the_fault_free_value_through_a_fault():
     assert mem.update(F, modes, w)[0] == pytest.approx(0.016)   # not taken: mode 0 is a minority
 
 
-def test_drift_memory_of_a_typed_item_takes_only_the_particles_where_the_whole_item_is_fault_free():
-    from fdir_service.estimation.jump import DriftMemory
-
-    N = 1000
-    w = np.full(N, 1.0 / N)
-    F = np.zeros((3, N))                                 # a throttle's bias and effectiveness, a gyro bias
-    modes = np.zeros((3, N), bool)
-    modes[1, :700] = True                                # the effectiveness entry holds an engine loss
-    F[0, :700] = -0.1                                    # ... and the bias entry's mode 0 took part of it
-    loose, tight = DriftMemory(3), DriftMemory(3)
-    tight.share_items(np.array([[0, 1], [1, 0]]))
-    assert loose.update(F, modes, w)[0] == pytest.approx(-0.07)     # entry by entry: 70 % of it learnt
-    assert tight.update(F, modes, w)[0] == 0.0                      # by item: mode 0 a minority, kept
-    F[0, :] = 0.01
-    modes[1] = False
-    assert tight.update(F, modes, w)[0] == pytest.approx(0.01)      # the item fault-free: taken
-    catalogue = load_estimator("aerosonde-catalogue")
-    f = build_filter("RJMRPF", catalogue, np.random.default_rng(0), particles=10)
-    assert f.parts.jump.drift.items is not None
-
-
 def test_under_drift_an_exit_returns_to_the_fault_free_value_and_the_estimate_is_the_change(robust):
     f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=1000)
     jump = f.parts.jump
