@@ -138,9 +138,14 @@ class SensorFaults:
         return reading - clean
 
 
+def unit_gain(g: float) -> float:
+    """A remaining gain or share g clipped to [0, 1] (effectiveness, engine)."""
+    return min(max(float(g), 0.0), 1.0)
+
+
 def scaled_command(u: float, g: float) -> float:
     """An input u (SI) that keeps g of its effect, g clipped to [0, 1] (effectiveness)."""
-    return u * min(max(g, 0.0), 1.0)
+    return u * unit_gain(g)
 
 
 class ActuatorFaults:
@@ -209,8 +214,8 @@ class ActuatorFaults:
                 continue
             if not active[j]:
                 out[j] = 0.0
-            elif kind == "effectiveness":
-                out[j] = (min(max(float(values[j]), 0.0), 1.0) - 1.0) * float(u_cmd[i])
+            elif kind == "effectiveness":          # (g - 1) u, the recorded truth's own rounding
+                out[j] = (unit_gain(values[j]) - 1.0) * float(u_cmd[i])
             else:
                 out[j] = self._typed(i, j, kind, float(u_cmd[i]), values, u_prev) - float(u_cmd[i])
         return out

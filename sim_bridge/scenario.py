@@ -47,8 +47,12 @@ _PURE_NUMBER_TYPES = {"noisy": "a noise multiplier k >= 1",
                       "effectiveness": "a remaining gain g in [0, 1]",
                       "engine": "a remaining share of the thrust g in [0, 1]"}
 """Types whose amplitude is a pure number (unit "1"), and what it is."""
-_AMPLITUDE_OK = {"noisy": lambda lo, hi: lo >= 1.0, "effectiveness": lambda lo, hi: lo >= 0.0 and hi <= 1.0,
-                 "engine": lambda lo, hi: lo >= 0.0 and hi <= 1.0}
+def _within_unit_interval(lo: float, hi: float) -> bool:
+    return lo >= 0.0 and hi <= 1.0
+
+
+_AMPLITUDE_OK = {"noisy": lambda lo, hi: lo >= 1.0, "effectiveness": _within_unit_interval,
+                 "engine": _within_unit_interval}
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ import numpy as np
 from fdir_service.airframe import AirframeParams, trim
 from fdir_service.airframe.dynamics import derivatives_scalar, rk4_step_scalar
 from fdir_service.airframe.linearize import linear_model
-from sim_bridge.fault_types import ActuatorFaults
+from sim_bridge.fault_types import ActuatorFaults, unit_gain
 from sim_bridge.scenario import Scenario
 from sim_bridge.turbulence import Dryden
 from sim_bridge.wind import ned_to_body, wind_ned
@@ -175,7 +175,7 @@ class Truth:
         """The throttle at which the airframe's propeller gives g (clipped to [0, 1]) of the thrust of
         delta_t at the frame's airspeed: k_T (k_m^2 d'^2 - V^2) = g k_T (k_m^2 delta_t^2 - V^2)
         (SPEC section 2), so g = 0 is zero thrust, not the model's windmill drag at delta_t = 0."""
-        g = min(max(g, 0.0), 1.0)
+        g = unit_gain(g)
         zero = self.airspeed() / self.params.k_motor
         return math.sqrt(g * delta_t * delta_t + (1.0 - g) * zero * zero)
 

@@ -100,11 +100,10 @@ class PitotRow:
         self.mean: float | None = None
         """m/s: the mean M the gusts return to, of W + kappa u: the mean wind (kappa = 0), the mean
         airspeed (kappa = 1) (None before the first pitot reading)."""
-        self.dt = float(dt)
         self.authority = True
         """False while the throttle command sits at a limit, and HOLD_SETTLE_S after (`command`): no
         airspeed is held."""
-        self.settle_frames = math.ceil(HOLD_SETTLE_S / self.dt - 1e-9)
+        self.settle_frames = math.ceil(HOLD_SETTLE_S / float(dt) - 1e-9)
         self.off_limit = self.settle_frames
         """Frames since the throttle command last sat at a limit (up to settle_frames)."""
         self.kappa = self.hold
@@ -160,7 +159,8 @@ class PitotRow:
         kappa = self.hold if self.authority else 0.0
         if kappa != self.kappa:
             c = self._held_sum(W, u, kappa)
-            self.mean = float(c[fault_free].mean() if 2 * np.count_nonzero(fault_free) > c.size else c.mean())
+            mean = self._fault_free_mean(c, fault_free)
+            self.mean = float(c.mean()) if mean is None else mean
             self.kappa = kappa
         return kappa
 
@@ -181,8 +181,14 @@ class PitotRow:
     def _follow_mean(self, c: np.ndarray, fault_free: np.ndarray) -> None:
         """M follows the fault-free particles' mean of c (W + kappa u, m/s) while they are most of
         the cloud."""
-        if 2 * np.count_nonzero(fault_free) > c.size:
-            self.mean += self.mean_rate * (float(c[fault_free].mean()) - self.mean)
+        mean = self._fault_free_mean(c, fault_free)
+        if mean is not None:
+            self.mean += self.mean_rate * (mean - self.mean)
+
+    @staticmethod
+    def _fault_free_mean(c: np.ndarray, fault_free: np.ndarray) -> float | None:
+        """The fault-free particles' mean of c (N,) when they are most of the cloud, else None."""
+        return float(c[fault_free].mean()) if 2 * np.count_nonzero(fault_free) > c.size else None
 
     def follow(self, fault_estimate: np.ndarray) -> None:
         """After a step: the sum of the pitot entries' estimates (nf,) SI, each the change from its
