@@ -109,12 +109,16 @@ class FieldMap:
 @dataclass(frozen=True)
 class DeclareConfig:
     """STATUSTEXT hysteresis: declare when P(fault) >= p_declare for declare_hold_s of frame
-    time; clear when P(fault) <= p_clear for clear_hold_s."""
+    time; clear when P(fault) <= p_clear for clear_hold_s. A declared item's type is named once
+    P(item) >= p_declare and the most probable type holds a share >= p_type of it (at the
+    declaration, or held for declare_hold_s after it); until then it is declared as of an unclear
+    type (0: always name the most probable)."""
 
     p_declare: float = 0.9
     declare_hold_s: float = 0.2
     p_clear: float = 0.5
     clear_hold_s: float = 1.0
+    p_type: float = 0.8
 
 
 @dataclass(frozen=True)
@@ -500,6 +504,7 @@ def _parse(doc: dict[str, Any], text: str, estimator_doc: dict[str, Any] | None,
         p_clear=dc.take("p_clear", "number", 0.5,
                         check=Check(lambda v: 0 <= v < p_decl, f"a probability below p_declare ({p_decl})")),
         clear_hold_s=dc.take("clear_hold_s", "number", 1.0, check=NON_NEGATIVE.saying("a time >= 0")),
+        p_type=dc.take("p_type", "number", 0.8, check=Check(lambda v: 0 <= v <= 1, "a share in [0, 1]")),
     )
     dc.finish()
     publish = PublishConfig(

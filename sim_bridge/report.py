@@ -154,11 +154,32 @@ def filter_median_run(scenario: Scenario, fr: FilterRuns) -> int:
     return median_run(err)
 
 
+ENVIRONMENT_PACKAGES = ("numpy", "scipy", "jsbsim")
+"""The packages whose builds decide a campaign's bits (with the Python version): recorded in results.json."""
+
+
+def environment() -> dict[str, str]:
+    """Python's and ENVIRONMENT_PACKAGES' versions, and the machine (`platform.machine`). The same
+    code and seed fly the same bits on the same builds; another numpy build may round differently,
+    and a world whose faults upset the aircraft amplifies that into other flights."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    def ver(name: str) -> str:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "absent"
+
+    return {"python": platform.python_version(), **{n: ver(n) for n in ENVIRONMENT_PACKAGES},
+            "machine": platform.machine()}
+
+
 def summarise(camp: Campaign) -> dict:
     """The results.json document of a campaign."""
     sc = camp.scenario
     doc = {"scenario": sc.id, "runs": camp.runs, "particles": camp.particles, "seed": camp.seed,
-           "wall_s": round(camp.wall_s, 3), "filters": {}}
+           "wall_s": round(camp.wall_s, 3), "environment": environment(), "filters": {}}
     hold = 0.25
     for name, fr in camp.filters.items():
         t = fr.t
@@ -265,7 +286,8 @@ def markdown(  # noqa: C901 - report assembly: one section after another, each a
     L = [f"# {sid}: {scenario.title}", "",
          where + f"{doc['runs']} closed-loop Monte Carlo runs, N = {doc['particles']} particles, seed "
          f"{doc['seed']}; every filter's autopilot flies on that filter's own estimate."
-         + (f" Campaign wall time {wall_s:.1f} s." if wall_s is not None else ""), ""]
+         + (f" Campaign wall time {wall_s:.1f} s." if wall_s is not None else "")
+         + _environment_text(doc.get("environment")), ""]
     orders = check_orderings({sid: doc})
     refs = check_orderings({sid: doc}, REFERENCE_ORDERINGS)
     if orders:
@@ -507,6 +529,14 @@ def write_report(camp: Campaign, out: str | Path, thesis: dict | None = None,
     return doc
 
 
+def _environment_text(env: dict[str, str] | None) -> str:
+    """' Flown with Python 3.11.7, numpy 2.4.6, ... (x86_64).' ('' without a record)."""
+    if not env:
+        return ""
+    pkgs = ", ".join(f"{n} {env[n]}" for n in ENVIRONMENT_PACKAGES if n in env)
+    return f" Flown with Python {env.get('python', '?')}, {pkgs} ({env.get('machine', '?')})."
+
+
 def _status(docs: dict[str, dict]) -> list[str]:
     """How the campaigns of a combined page were run (runs, N, seed, wall time per scenario)."""
     if not docs:
@@ -730,9 +760,11 @@ def _type_line(name: str, ty: str, r: dict) -> str:
     """One row of the per-fault-type table."""
     mag = ", ".join(f"{_fmt(v)} {u}" for u, v in r["magnitude_rmse"].items()) or _fmt(None)
     det, delay, right = _goal_cells(r)
+    named = r.get("named_s", {})
     return (f"| {name} | {ty} | {r['episodes']} | {det} | {delay} | {_fmt(r['delay_s']['p90'], 2)} | "
-            f"{right} | {_fmt(r.get('right_settled_fraction'), 2)} | {_fmt(r['right_item_fraction'], 2)} | "
-            f"{mag} |")
+            f"{right} | {r.get('named', '-')} | {_fmt(named.get('median'), 2)} | "
+            f"{_fmt(r.get('right_probable_fraction'), 2)} | {_fmt(r.get('right_settled_fraction'), 2)} | "
+            f"{_fmt(r['right_item_fraction'], 2)} | {mag} |")
 
 
 def by_type_lines(y: dict | None) -> list[str]:
@@ -754,8 +786,11 @@ def by_type_markdown(rows: list[tuple[str, dict]]) -> list[str]:
     L = ["## Per fault type", "",
          "Each injected episode matched to the monitored entries by item and type (definitions in "
          "sim_bridge/type_yardstick.py): detected when its item is declared (P(item) over its types, "
-         "the service's hysteresis); right when the first item declared is its own and names its type "
-         "then (and, in the next column, 2 s later); magnitude RMSE of the right entry's estimate "
+         "the service's hysteresis); right when the first item declared is its own and the type the "
+         "service names for it is right (a type is named once it holds >= p_type of P(item), at the "
+         "declaration or later: `[publish.declare]`); named: the declarations that named a type before "
+         "they cleared, and the median time from the declaration to the name; beside them, the most "
+         "probable type at the declaration and 2 s later; magnitude RMSE of the right entry's estimate "
          "over the active frames, in the fault's unit (- : unitless k - 1, g - 1). False alarms per "
          "flight hour with every type enabled (goal <= "
          f"{GOALS['false_alarms_per_hour']:g}): "
@@ -763,14 +798,14 @@ def by_type_markdown(rows: list[tuple[str, dict]]) -> list[str]:
                      for n, y in typed) + ".", "",
          f"| filter | type | episodes | detected (goal >= {GOALS['detection_fraction']:.0%}) | "
          f"median delay s (goal <= {GOALS['delay_median_s']:g} s) | p90 delay s | "
-         f"right item and type (goal >= {GOALS['right_fraction']:.0%}) | right type 2 s later | "
-         "right item | magnitude RMSE |",
-         "|---|---|---|---|---|---|---|---|---|---|"]
+         f"right item and type named (goal >= {GOALS['right_fraction']:.0%}) | named | named after s | "
+         "most probable right at declaration | 2 s later | right item | magnitude RMSE |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     L += [_type_line(n, ty, r) for n, y in typed for ty, r in y["by_type"]["types"].items()]
     L.append("")
     for n, y in typed:
         L += _confusion_markdown(f"Isolation by item and type, {n} (rows: injected item:type; columns: "
-                                 "first item declared, with its type then)", "injected",
+                                 "first item declared, with the type named)", "injected",
                                  y["by_type"]["confusion"], MISSED)
     return L
 

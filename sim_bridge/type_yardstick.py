@@ -33,10 +33,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from fdir_service.runtime.publishing import UNCLEAR
 from sim_bridge.faults import EDGE_TOL_S
 from sim_bridge.scenario import ProfileComponent
 from sim_bridge.yardstick import (
     Hysteresis,
+    _switch,
     declarations,
     delay_stats,
     episode_window,
@@ -158,12 +160,14 @@ def magnitude_sq(estimate: np.ndarray, truth: np.ndarray, active: np.ndarray,
 
 class ItemView(NamedTuple):
     """The service's view by item (`fdir_service.runtime.items`): names (ni,), targets (ni,);
-    prob (K, ni) P(item faulty); best (K, ni) the index of each item's most probable entry."""
+    prob (K, ni) P(item faulty); best (K, ni) the index of each item's most probable entry; share
+    (K, ni) its share of P(item) (`items.type_share`)."""
 
     names: list[str]
     targets: list[str]
     prob: np.ndarray
     best: np.ndarray
+    share: np.ndarray
 
 
 def item_view(prob: np.ndarray, entries: Sequence[Kind], names: list[str]) -> ItemView:
@@ -171,39 +175,65 @@ def item_view(prob: np.ndarray, entries: Sequence[Kind], names: list[str]) -> It
     prob (..., K, nf); best: the most probable entry of each item per frame."""
     from types import SimpleNamespace
 
-    from fdir_service.runtime.items import item_layout, item_probability
+    from fdir_service.runtime.items import item_layout, item_probability, type_share
 
     layout = item_layout([SimpleNamespace(id=n, target=en.target)
                           for n, en in zip(names, entries, strict=True)])
     p_item = item_probability(prob, layout, [en.type for en in entries])
     filled = np.where(np.isnan(prob), -np.inf, prob)
     best = np.stack([np.asarray(g)[np.argmax(filled[..., g], axis=-1)] for g in layout.entries], axis=-1)
-    return ItemView(list(layout.names), list(layout.targets), p_item, best)
+    p_best = np.take_along_axis(prob, best, axis=-1)
+    return ItemView(list(layout.names), list(layout.targets), p_item, best, type_share(p_best, p_item))
+
+
+def named_entry(t: np.ndarray, dec: np.ndarray, view: ItemView, i: int, k0: int,
+                rule: Hysteresis) -> tuple[int, int] | None:
+    """(frame, entry) where the service names the type of item i declared at frame k0
+    (`publishing.Publisher`): at k0 when P(item) >= p_declare and its most probable entry holds a
+    share >= p_type of it, else the first frame where one entry has been so for declare_hold_s
+    while the declaration stands; None if never. dec (K,): the item's declaration."""
+    best = view.best[:, i]
+    sure = (view.share[:, i] >= rule.p_type) & (np.nan_to_num(view.prob[:, i]) >= rule.p_declare)
+    if sure[k0]:
+        return k0, int(best[k0])
+    rest = dec[k0 + 1:]
+    end = k0 + 1 + (int(np.argmin(rest)) if not rest.all() else rest.size)   # the declaration's end
+    runs = {int(b): sure[:end] & (best[:end] == b) for b in np.unique(best[k0 + 1:end])}
+    hits = [(k, b) for b, run in runs.items()
+            if (k := _switch(t[:end], run, k0 + 1, rule.declare_hold_s)) is not None]
+    return min(hits) if hits else None
 
 
 def typed_episode(t: np.ndarray, dec: np.ndarray, view: ItemView, entries: Sequence[Kind],
-                  fault: WorldFault, right: list[int], s: int, e: int) -> dict:
+                  fault: WorldFault, right: list[int], s: int, e: int, rule: Hysteresis) -> dict:
     """Detection and isolation of one episode [s, e) of a world fault, against the item
-    declarations dec (K, ni) (`ItemView`: item names break ties, the most probable entry of the
-    declared item at its first declared frame is the type declared); right: indices of its right
-    entries. Magnitude fields are filled by `typed_run`."""
+    declarations dec (K, ni) (`ItemView`: item names break ties); right: indices of its right
+    entries. The type declared is the one the service names (`named_entry`; "unclear" if none
+    before the declaration ends), beside the most probable at the first declared frame
+    (`right_probable`) and SETTLE_S later (`right_settled`). Magnitude fields: `typed_run`."""
     win = episode_window(t, s, e)
     item = [i for i, tg in enumerate(view.targets) if tg == fault.kind.target]
     hit = first_standing(dec, win, item)
-    k = hit[0] if hit else None
     first = first_declared(dec, win, item, view.names)
-    entry = int(view.best[win.start + first[0], first[1]]) if first else None
-    decl = entries[entry] if first else None
-    settled = None
-    if first:
-        k2 = int(np.searchsorted(t, t[win.start + first[0]] + SETTLE_S))
-        settled = int(view.best[min(k2, t.size - 1), first[1]])
-    return {"item": fault.kind.target, "type": fault.kind.type, "detected": k is not None,
-            "delay_s": float(t[s + k] - t[s]) if k is not None else None,
-            "declared": decl.label() if decl else MISSED, "right": entry is not None and entry in right,
-            "right_settled": settled is not None and settled in right,
-            "right_item": decl is not None and decl.target == fault.kind.target,
-            "entry": entry if entry in right else (right[0] if right else None)}
+    out = {"item": fault.kind.target, "type": fault.kind.type, "detected": hit is not None,
+           "delay_s": float(t[s + hit[0]] - t[s]) if hit else None, "declared": MISSED,
+           "right": False, "right_probable": False, "right_settled": False, "right_item": False,
+           "named_s": None, "entry": right[0] if right else None}
+    if not first:
+        return out
+    k0, i = win.start + first[0], first[1]
+    entry = int(view.best[k0, i])
+    settled = int(view.best[min(int(np.searchsorted(t, t[k0] + SETTLE_S)), t.size - 1), i])
+    back = dec[k0::-1, i]
+    start = 0 if back.all() else k0 - int(np.argmin(back)) + 1          # the declaration's first frame
+    named = named_entry(t, dec[:, i], view, i, start, rule)
+    target = entries[entry].target
+    out.update(declared=Kind(target, entries[named[1]].type if named else UNCLEAR).label(),
+               right=named is not None and named[1] in right, right_probable=entry in right,
+               right_settled=settled in right, right_item=target == fault.kind.target,
+               named_s=max(0.0, float(t[named[0]] - t[k0])) if named else None,
+               entry=entry if entry in right else out["entry"])
+    return out
 
 
 def typed_run(t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray, entries: Sequence[Kind],
@@ -218,7 +248,7 @@ def typed_run(t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray, entries: Seque
     out = []
     for w, fault in enumerate(faults):
         for s, e in episodes(active[:, w]):
-            ep = typed_episode(t, dec, view, entries, fault, right[w], s, e)
+            ep = typed_episode(t, dec, view, entries, fault, right[w], s, e, rule)
             j = ep.pop("entry")
             sq, n = magnitude_sq(f_hat[s:e, j], truth[s:e, w], active[s:e, w], fault.scale) \
                 if j is not None else (0.0, 0)
@@ -245,11 +275,13 @@ def magnitude_rmse(eps: list[dict]) -> dict[str, float]:
 def type_row(eps: list[dict]) -> dict:
     """The pooled figures of one fault type's episodes."""
     delays = [ep["delay_s"] for ep in eps if ep["delay_s"] is not None]
+    named = [ep["named_s"] for ep in eps if ep["named_s"] is not None]
     return {"episodes": len(eps), "detected": len(delays),
             "detection_fraction": _fraction(eps, "detected"), "delay_s": delay_stats(delays),
             "right_fraction": _fraction(eps, "right"), "right_item_fraction": _fraction(eps, "right_item"),
+            "right_probable_fraction": _fraction(eps, "right_probable"),
             "right_settled_fraction": _fraction(eps, "right_settled"),
-            "magnitude_rmse": magnitude_rmse(eps)}
+            "named": len(named), "named_s": delay_stats(named), "magnitude_rmse": magnitude_rmse(eps)}
 
 
 def confusion(eps: list[dict]) -> dict[str, dict[str, int]]:

@@ -44,6 +44,7 @@ class Hysteresis:
     declare_hold_s: float = 0.2
     p_clear: float = 0.5
     clear_hold_s: float = 1.0
+    p_type: float = 0.8
 
     @classmethod
     def of_service(cls) -> Hysteresis:
@@ -51,11 +52,11 @@ class Hysteresis:
         from fdir_service.service_config import load_service_config
 
         dc = load_service_config().publish.declare
-        return cls(dc.p_declare, dc.declare_hold_s, dc.p_clear, dc.clear_hold_s)
+        return cls(dc.p_declare, dc.declare_hold_s, dc.p_clear, dc.clear_hold_s, dc.p_type)
 
     def with_threshold(self, p: float) -> Hysteresis:
         """The same rule declaring at p (clearing below min(p_clear, p - 0.1))."""
-        return Hysteresis(p, self.declare_hold_s, min(self.p_clear, p - 0.1), self.clear_hold_s)
+        return Hysteresis(p, self.declare_hold_s, min(self.p_clear, p - 0.1), self.clear_hold_s, self.p_type)
 
 
 def _switch(t: np.ndarray, crossing: np.ndarray, start: int, hold_s: float) -> int | None:

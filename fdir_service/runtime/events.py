@@ -304,8 +304,9 @@ class FaultDeclared(Event):
     estimate: float
     statustext: str
     fault_type: str = "bias"
-    """The item's most probable type when declared; `estimate` is then its user-facing value (SI;
-    a noisy k and an effectiveness g unitless)."""
+    """The type the declaration names (`publishing.UNCLEAR` while no type holds a share >= p_type
+    of P(item)); `estimate` is the most probable type's user-facing value (SI; a noisy k and an
+    effectiveness g unitless)."""
     level: ClassVar[str] = "warning"
 
     @property
@@ -315,9 +316,10 @@ class FaultDeclared(Event):
 
 @dataclass(frozen=True)
 class FaultTypeChanged(Event):
-    """A declared item's most probable type changed from `previous_type` to `fault_type` at frame
-    time `time_s` (s), with P(item faulty) `p` and the new type's user-facing `value` (SI; k and g
-    unitless); `statustext`: the STATUSTEXT sent ("FDIR q stuck at 3.2 deg/s p=0.97 (was bias)")."""
+    """A declared item's named type changed from `previous_type` (`publishing.UNCLEAR` when the
+    declaration named none) to `fault_type` at frame time `time_s` (s), with P(item faulty) `p`
+    and the new type's user-facing `value` (SI; k and g unitless); `statustext`: the STATUSTEXT
+    sent ("FDIR q stuck at 3.2 deg/s p=0.97 (was bias)")."""
 
     fault_id: str
     time_s: float

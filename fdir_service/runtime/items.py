@@ -56,12 +56,14 @@ class ItemLayout:
 class ItemFrame:
     """One frame's item view (ni items, `ItemLayout` order). p (ni,): P(item faulty); entry (ni,):
     index of the most probable entry; types (ni,): its type; value (ni,): its user-facing value
-    (SI; k and g unitless)."""
+    (SI; k and g unitless); share (ni,): that entry's P over P(item), in [0, 1] (`type_share`; 1
+    for a one-entry item)."""
 
     p: np.ndarray
     entry: np.ndarray
     types: tuple[str, ...]
     value: np.ndarray
+    share: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -138,7 +140,7 @@ def item_frame(layout: ItemLayout, out: StepOutput, types: Sequence[str]) -> Ite
     if len(layout) == len(types):   # one entry per item: the entries themselves
         v = out.fault_value if out.fault_value is not None else out.fault_estimate
         return ItemFrame(prob[:len(types)].copy(), np.arange(len(types)), tuple(types),
-                         np.asarray(v, dtype=float)[:len(types)].copy())
+                         np.asarray(v, dtype=float)[:len(types)].copy(), np.ones(len(types)))
     p = np.empty(len(layout))
     best = np.empty(len(layout), dtype=int)
     for i, idx in enumerate(layout.entries):
@@ -146,7 +148,16 @@ def item_frame(layout: ItemLayout, out: StepOutput, types: Sequence[str]) -> Ite
         p[i] = combine_probability(pe, np.array([types[j] == "noisy" for j in idx]))
         best[i] = idx[int(np.argmax(np.where(np.isnan(pe), -np.inf, pe)))]
     value = np.array([out.value_of(int(j)) for j in best])
-    return ItemFrame(p, best, tuple(types[int(j)] for j in best), value)
+    return ItemFrame(p, best, tuple(types[int(j)] for j in best), value, type_share(prob[best], p))
+
+
+def type_share(p_entry: np.ndarray, p_item: np.ndarray) -> np.ndarray:
+    """The most probable entry's share of its item's P (...,): p_entry / p_item clipped to [0, 1];
+    0 where P(item) is 0 or not finite (no type to name)."""
+    p_entry, p_item = np.asarray(p_entry, dtype=float), np.asarray(p_item, dtype=float)
+    ok = np.isfinite(p_item) & (p_item > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(ok, np.clip(np.nan_to_num(p_entry / np.where(ok, p_item, 1.0)), 0.0, 1.0), 0.0)
 
 
 def type_code(name: str) -> int:

@@ -13,9 +13,12 @@ items; NAMED_VALUE_FLOAT stays per entry (f_<id>, pf_<id>, ...).
 
 Hysteresis (config `[publish.declare]`), per item: an item is declared when P(item faulty) >=
 p_declare on every frame for declare_hold_s of frame time, and cleared when P <= p_clear for
-clear_hold_s; a declaration carries the item's most probable type, and while declared a new most
-probable type held for declare_hold_s is announced. Each change is a typed event (`FaultDeclared`,
-`FaultCleared`, `FaultTypeChanged`) besides its STATUSTEXT ("FDIR q stuck at 3.2 deg/s p=0.97").
+clear_hold_s. A type is *named* when P(item) >= p_declare and the item's most probable type
+holds a share >= p_type of it: a declaration carries the named type, or UNCLEAR while none is
+("FDIR de fault, type unclear p=0.95"), and while declared a new named type held for
+declare_hold_s is announced (an unclear declaration's first name too). Each change is a typed
+event (`FaultDeclared`, `FaultCleared`, `FaultTypeChanged`) besides its STATUSTEXT ("FDIR q stuck
+at 3.2 deg/s p=0.97").
 
 `RateLimit` spaces the STATUSTEXTs the runtime sends about one subject in frame time;
 `sensor_notice` and `link_notice` are the STATUSTEXTs of sensor, clock and link events.
@@ -58,6 +61,8 @@ if TYPE_CHECKING:
 
 _EPS_US = 1  # frame-time comparisons in us
 _NVF = dialect.MAVLink_named_value_float_message
+UNCLEAR = "unclear"
+"""The type a declaration names while no type holds a share >= p_type of P(item)."""
 _EST = dialect.MAVLink_fdir_estimate_message
 
 
@@ -67,8 +72,8 @@ class _Hysteresis:
 
     declared: bool = False
     since_us: int | None = None  # first frame of the current run above p_declare / below p_clear
-    fault_type: str = "bias"     # the type announced by the last declaration or type change
-    candidate: str = "bias"      # while declared: the most probable type differing from fault_type
+    fault_type: str = "bias"     # the type announced by the last declaration or type change (or UNCLEAR)
+    candidate: str = "bias"      # while declared: the named type (clear enough) differing from fault_type
     type_since_us: int | None = None  # first frame of the candidate's current run
 
 
@@ -108,6 +113,8 @@ def statustext_for(fault: FaultChannel, estimate_si: float, p: float, declared: 
     name = fault.id if name is None else name
     if not declared:
         return f"FDIR {name} cleared p={p:.2f}"
+    if fault_type == UNCLEAR:
+        return f"FDIR {name} fault, type unclear p={p:.2f}"
     word = "fault" if fault_type == "bias" else fault_type
     return f"FDIR {name} {word} {value_text(fault, fault_type, estimate_si)} p={p:.2f}"
 
@@ -230,7 +237,7 @@ class Publisher:
     def _declaration_change(self, i: int, h: _Hysteresis, time_us: int, view: ItemFrame) -> Change | None:
         """Item i's declaration or type change on this frame, if any."""
         dc = self.config.declare
-        p, ftype = float(view.p[i]), view.types[i]
+        p = float(view.p[i])
         crossing = (p <= dc.p_clear) if h.declared else (p >= dc.p_declare)
         if not crossing:
             h.since_us = None
@@ -240,14 +247,23 @@ class Publisher:
         if not _held(h.since_us, time_us, dc.clear_hold_s if h.declared else dc.declare_hold_s):
             return self._type_change(i, h, time_us, view)
         h.declared, h.since_us, h.type_since_us = not h.declared, None, None
-        h.fault_type = h.candidate = ftype
-        return Change(i, "declared" if h.declared else "cleared", self._text(i, view, h.declared))
+        if h.declared:                      # a clearing keeps the last type named
+            h.fault_type = h.candidate = self._named_type(i, view) or UNCLEAR
+        text = self._text(i, view, h.declared, h.fault_type)
+        return Change(i, "declared" if h.declared else "cleared", text)
+
+    def _named_type(self, i: int, view: ItemFrame) -> str | None:
+        """Item i's most probable type when P(item) >= p_declare and the type holds a share >=
+        p_type of it, else None (no type is named on evidence too weak to declare)."""
+        dc = self.config.declare
+        sure = float(view.p[i]) >= dc.p_declare and float(view.share[i]) >= dc.p_type
+        return view.types[i] if sure else None
 
     def _type_change(self, i: int, h: _Hysteresis, time_us: int, view: ItemFrame) -> Change | None:
-        """While item i is declared: a change once a new most probable type has held for
-        declare_hold_s (a candidate that changes restarts the hold)."""
-        ftype = view.types[i]
-        if not h.declared or ftype == h.fault_type:
+        """While item i is declared: a change once a new named type (`_named_type`) has held for
+        declare_hold_s (a candidate that changes, or loses its share, restarts the hold)."""
+        ftype = self._named_type(i, view)
+        if not h.declared or ftype is None or ftype == h.fault_type:
             h.type_since_us = None
             return None
         if h.type_since_us is None or ftype != h.candidate:
@@ -255,12 +271,12 @@ class Publisher:
         if not _held(h.type_since_us, time_us, self.config.declare.declare_hold_s):
             return None
         previous, h.fault_type, h.type_since_us = h.fault_type, ftype, None
-        return Change(i, "type", f"{self._text(i, view, True)} (was {previous})", previous)
+        return Change(i, "type", f"{self._text(i, view, True, ftype)} (was {previous})", previous)
 
-    def _text(self, i: int, view: ItemFrame, declared: bool) -> str:
-        """Item i's STATUSTEXT for this frame's view (declared: its type and value in words)."""
+    def _text(self, i: int, view: ItemFrame, declared: bool, fault_type: str) -> str:
+        """Item i's STATUSTEXT for this frame's view (declared: the named type and its value in words)."""
         entry = self.faults[int(view.entry[i])]
-        return statustext_for(entry, float(view.value[i]), float(view.p[i]), declared, view.types[i],
+        return statustext_for(entry, float(view.value[i]), float(view.p[i]), declared, fault_type,
                               self.layout.names[i])
 
     def item_report(self) -> ItemReport | None:
@@ -322,7 +338,7 @@ class Publisher:
         name, p = self.layout.names[c.item], float(view.p[c.item])
         if c.what == "cleared":
             return FaultCleared(name, frame.time_s, p, c.text)
-        ftype, value = view.types[c.item], float(view.value[c.item])
+        ftype, value = self.hyst[c.item].fault_type, float(view.value[c.item])
         if c.what == "declared":
             return FaultDeclared(name, frame.time_s, p, value, c.text, ftype)
         return FaultTypeChanged(name, frame.time_s, p, value, c.text, ftype, c.previous)

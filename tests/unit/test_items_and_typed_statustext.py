@@ -4,6 +4,7 @@ carries the type and whose type changes are announced."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -163,3 +164,25 @@ def test_a_blocked_pitot_is_said_with_its_reading_and_every_type_has_its_own_cod
     assert TYPE_CODES["drift"] == dialect.FDIR_FAULT_TYPE_DRIFT == 6
     assert len(set(TYPE_CODES.values())) == len(TYPE_CODES) and TYPE_NAMES[6] == "drift"
     assert unpack_fault_types(pack_fault_types([5, 6, 0]))[:3] == [5, 6, 0]
+
+
+def test_a_declaration_whose_types_share_the_evidence_is_unclear_until_one_holds_p_type():
+    pub = Publisher(CFG.publish, FAULTS[:4], new_mavlink(1, 191), adaptive=False)   # p_type 0.8
+    split = step([0.0, 0.5, 0.0, 0.45], value=[0, 0, 0, 3.2 * DEG])
+    stuck = step([0.0, 0.03, 0.0, 0.95], value=[0, 0, 0, 3.2 * DEG])
+    seq = [split] * 8 + [stuck] * 6
+    events = [e for k, o in enumerate(seq) for e in pub.publish(frame(200 + k), o)[1]]
+    unclear = "FDIR q fault, type unclear p=0.95"
+    assert events[0] == FaultDeclared("q", 10.2, pytest.approx(0.95), 0.0, unclear, "unclear")
+    named = "FDIR q stuck at 3.2 deg/s p=0.98 (was unclear)"
+    assert events[1] == FaultTypeChanged("q", pytest.approx(10.6), pytest.approx(0.98),
+                                         pytest.approx(3.2 * DEG), named, "stuck", "unclear")
+    assert len(events) == 2
+
+
+def test_p_type_0_names_the_most_probable_type_at_once():
+    cfg = dataclasses.replace(CFG.publish, declare=dataclasses.replace(CFG.publish.declare, p_type=0.0))
+    pub = Publisher(cfg, FAULTS[:4], new_mavlink(1, 191), adaptive=False)
+    split = step([0.0, 0.45, 0.0, 0.5], value=[0, 0, 0, 3.2 * DEG])
+    events = [e for k, o in enumerate([split] * 8) for e in pub.publish(frame(200 + k), o)[1]]
+    assert [(type(e), e.fault_type) for e in events] == [(FaultDeclared, "stuck")]

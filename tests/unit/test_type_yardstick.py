@@ -209,3 +209,36 @@ def test_a_typed_estimators_fault_free_flight_is_scored_by_item_as_the_service_d
                          world_active=None, sim_seeds=np.array([1]))
     y = _yardstick(SimpleNamespace(scenario=sc), fr)
     assert y["false_alarms"] == 1                              # per entry (0.5, 0.45) it was 0
+
+
+def _split(shares: list[tuple[float, float, dict[int, float]]]) -> dict:
+    """The single baro stuck episode (10-20 s) with P per entry given by stretches (from, to, {j: p})."""
+    prob = np.zeros((T.size, len(ENTRIES)))
+    for a, b, ps in shares:
+        for j, p in ps.items():
+            prob[_between(a, b), j] = p
+    (ep,) = typed_run(T, prob, np.zeros_like(prob), ENTRIES, NAMES, [BARO_STUCK], np.zeros((T.size, 1)),
+                      _between(10.0, 20.0)[:, None], RULE)
+    return ep
+
+
+def test_a_type_is_named_once_it_holds_its_share_and_the_name_is_what_is_scored():
+    ep = _split([(10.5, 12.0, {0: 0.5, 1: 0.45}), (12.0, 20.0, {0: 0.03, 1: 0.95})])
+    assert ep["detected"] and ep["delay_s"] == pytest.approx(0.7, abs=1e-9)   # declared on P(item) 0.95
+    assert ep["declared"] == "baro_alt:stuck" and ep["right"] and not ep["right_probable"]
+    assert ep["named_s"] == pytest.approx(12.2 - 10.7, abs=1e-9)              # the share held 0.2 s
+
+
+def test_a_declaration_whose_type_never_holds_its_share_stays_unclear():
+    ep = _split([(10.5, 20.0, {0: 0.5, 1: 0.45})])
+    assert ep["detected"] and ep["declared"] == "baro_alt:unclear" and ep["named_s"] is None
+    assert not ep["right"] and not ep["right_probable"] and ep["right_item"]
+
+
+def test_with_p_type_0_the_most_probable_type_at_the_declaration_is_named():
+    rule = Hysteresis(0.9, 0.2, 0.5, 1.0, p_type=0.0)
+    prob = np.zeros((T.size, len(ENTRIES)))
+    prob[_between(10.5, 20.0), 0], prob[_between(10.5, 20.0), 1] = 0.5, 0.45
+    (ep,) = typed_run(T, prob, np.zeros_like(prob), ENTRIES, NAMES, [BARO_STUCK], np.zeros((T.size, 1)),
+                      _between(10.0, 20.0)[:, None], rule)
+    assert ep["declared"] == "baro_alt:bias" and ep["named_s"] == 0.0 and not ep["right"]
