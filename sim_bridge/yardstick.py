@@ -59,7 +59,7 @@ class Hysteresis:
         return Hysteresis(p, self.declare_hold_s, min(self.p_clear, p - 0.1), self.clear_hold_s, self.p_type)
 
 
-def _switch(t: np.ndarray, crossing: np.ndarray, start: int, hold_s: float) -> int | None:
+def first_held(t: np.ndarray, crossing: np.ndarray, start: int, hold_s: float) -> int | None:
     """The first frame >= start where `crossing` has held for hold_s since its run began (a run
     counted from `start` at the earliest), or None."""
     idx = np.flatnonzero(crossing[start:])
@@ -82,7 +82,7 @@ def declared(t: np.ndarray, p: np.ndarray, rule: Hysteresis) -> np.ndarray:
     out = np.zeros(p.size, dtype=bool)
     i, state = 0, False
     while i < p.size:
-        j = _switch(t, down if state else up, i, rule.clear_hold_s if state else rule.declare_hold_s)
+        j = first_held(t, down if state else up, i, rule.clear_hold_s if state else rule.declare_hold_s)
         if j is None:
             out[i:] = state
             break
