@@ -23,7 +23,7 @@ def config_path(kind: str, name_or_path: str | os.PathLike[str]) -> Path:
     """A config file of `kind` ("airframes", "estimators", "service", "autopilots", "experiments") by
     name or path."""
     p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists():
+    if p.suffix == ".toml" or p.is_file():      # a folder of the same name (a report's --out) is not it
         return p
     return config_dir() / kind / f"{name_or_path}.toml"
 
