@@ -175,6 +175,14 @@ def environment() -> dict[str, str]:
             "machine": platform.machine()}
 
 
+def _environment_text(env: dict[str, str] | None) -> str:
+    """' Flown with Python 3.11.7, numpy 2.4.6, ... (x86_64).' ('' without a record)."""
+    if not env:
+        return ""
+    pkgs = ", ".join(f"{n} {env[n]}" for n in ENVIRONMENT_PACKAGES if n in env)
+    return f" Flown with Python {env.get('python', '?')}, {pkgs} ({env.get('machine', '?')})."
+
+
 def summarise(camp: Campaign) -> dict:
     """The results.json document of a campaign."""
     sc = camp.scenario
@@ -527,14 +535,6 @@ def write_report(camp: Campaign, out: str | Path, thesis: dict | None = None,
     figs = figures(camp, doc, out) + roc_figure(doc, out) if make_figures else []
     (out / "report.md").write_text(markdown(camp.scenario, doc, thesis, figs, camp.wall_s))
     return doc
-
-
-def _environment_text(env: dict[str, str] | None) -> str:
-    """' Flown with Python 3.11.7, numpy 2.4.6, ... (x86_64).' ('' without a record)."""
-    if not env:
-        return ""
-    pkgs = ", ".join(f"{n} {env[n]}" for n in ENVIRONMENT_PACKAGES if n in env)
-    return f" Flown with Python {env.get('python', '?')}, {pkgs} ({env.get('machine', '?')})."
 
 
 def _status(docs: dict[str, dict]) -> list[str]:

@@ -23,7 +23,7 @@ Times in s; P(fault) series (R, K) per fault; frames at times t (K,).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -56,7 +56,7 @@ class Hysteresis:
 
     def with_threshold(self, p: float) -> Hysteresis:
         """The same rule declaring at p (clearing below min(p_clear, p - 0.1))."""
-        return Hysteresis(p, self.declare_hold_s, min(self.p_clear, p - 0.1), self.clear_hold_s, self.p_type)
+        return replace(self, p_declare=p, p_clear=min(self.p_clear, p - 0.1))
 
 
 def first_held(t: np.ndarray, crossing: np.ndarray, start: int, hold_s: float) -> int | None:
