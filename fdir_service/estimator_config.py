@@ -73,10 +73,11 @@ SENSOR_FAULT_TYPES = ("bias", "stuck", "noisy", "blocked", "drift")
 state does (stuck); multiplies its noise by k >= 1 (noisy); a blocked pitot (airspeed only) holds
 its total pressure, so its reading follows the altitude, V^2 = V0^2 + 2 g (h - h0); an offset that
 ramps at a rate of its own (drift)."""
-ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness")
+ACTUATOR_FAULT_TYPES = ("bias", "jammed", "effectiveness", "engine")
 """What an actuator fault does to its input (docs/faults.md): adds an offset; holds a position
-whatever the command (jammed); scales the command by a gain 0..1 (loss of effectiveness; an engine
-loss is the throttle's effectiveness gone)."""
+whatever the command (jammed); scales the command by a gain 0..1 (loss of effectiveness); the
+engine gives no thrust (throttle only, in thrust terms: the throttle it delivers is V / k_m
+whatever the command)."""
 INITIALISATIONS = ("trim", "first_frame")
 DEFAULT_ESTIMATOR = "aerosonde"
 """`config/estimators/aerosonde.toml`: what `fdir run` monitors with no arguments."""
@@ -108,7 +109,8 @@ class FaultSpec:
     """What the fault does to its target (`SENSOR_FAULT_TYPES`, `ACTUATOR_FAULT_TYPES`), file key
     `type`. Its entry in the extended state: bias the offset (SI); stuck and jammed the offset from
     the truth that holds the target still (the published value is the held reading/position);
-    noisy k - 1 (k the noise multiplier); effectiveness g - 1 (g the remaining gain)."""
+    noisy k - 1 (k the noise multiplier); effectiveness g - 1 (g the remaining gain); engine the
+    delivered throttle minus the commanded one (the published value is the thrust's share left)."""
     rate_sigma: float = 0.0
     """A drift fault's rate random walk (SI per s per sqrt(s); `drift_type.DriftJump`)."""
     on_exit: str = "reset"
@@ -304,6 +306,9 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
     if spec.fault_type == "blocked" and target != AIRSPEED_ROW:
         raise ConfigError(f"{t.key('type')}: only the pitot can be blocked; expected target = "
                           f"\"{AIRSPEED_ROW}\" for a blocked fault, got {target!r}")
+    if spec.fault_type == "engine" and target != "delta_t":
+        raise ConfigError(f"{t.key('type')}: only the throttle has an engine; expected target = "
+                          f"\"delta_t\" for an engine fault, got {target!r}")
     if spec.fault_type != "bias" and spec.on_exit != "reset":
         raise ConfigError(f"{t.key('on_exit')}: only a bias can be folded into the state; "
                           f"expected \"reset\" for a {spec.fault_type} fault, got {spec.on_exit!r}")
@@ -448,6 +453,17 @@ def _check_kinematic(settings: FilterSettings, faults: tuple[FaultSpec, ...],
                           f"airspeed")
 
 
+def _check_engine(settings: FilterSettings, faults: tuple[FaultSpec, ...], rows: tuple[str, ...]) -> None:
+    """An engine fault is seen in the throttle the accelerometer implies (`thrust.ThrustCheck`): the
+    kinematic model with its ax, az and airspeed rows."""
+    engine = [f.id for f in faults if f.fault_type == "engine"]
+    needs = (*IMU_ROWS, "airspeed")
+    if engine and not (settings.process_model == "kinematic" and set(needs) <= set(rows)):
+        raise ConfigError(f"faults {engine}: an engine fault is seen in the throttle the accelerometer "
+                          f"implies (thrust.py): expected parts.process_model = \"kinematic\" and "
+                          f"measurements.rows listing {', '.join(needs)}")
+
+
 def _check_pitot(settings: FilterSettings, faults: tuple[FaultSpec, ...], rows: tuple[str, ...]) -> None:
     """A pitot fault needs the derived airspeed row: the kinematic model and its ax, az rows."""
     pitot = [f.id for f in faults if f.target == AIRSPEED_ROW]
@@ -481,6 +497,7 @@ def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> Estimat
     _check_prior(settings, faults)
     _check_kinematic(settings, faults, rows)
     _check_pitot(settings, faults, rows)
+    _check_engine(settings, faults, rows)
     op = _operating_point(root)
     root.finish()
     return EstimatorConfig(operating_point=op, measurements=rows, sigma=sigma, faults=faults,

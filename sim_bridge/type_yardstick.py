@@ -9,7 +9,8 @@ Per episode (a stretch of the channel's active frames; activity from the profile
 while active), with the service's declarations (`sim_bridge.yardstick.declarations`) and the
 window from onset to GRACE_S after the end (`sim_bridge.yardstick`):
 - the **right** entries have the same item and a matching type (`type_matches`: equal, a
-  "blocked" pitot answered by a "stuck" entry, an "engine" loss by the throttle's "effectiveness");
+  "blocked" pitot answered by a "stuck" entry; an "engine" loss by the throttle's "effectiveness"
+  where the estimator has no "engine" entry);
 - declarations are by item, as the service makes them (`fdir_service.runtime.items`): P(item
   faulty) combines its entries' P (exclusive additive types add up, a noisy one is independent),
   through the service's hysteresis; the type declared is the one the service names
@@ -50,8 +51,11 @@ from sim_bridge.yardstick import (
 
 UNITLESS_TYPES = ("noisy", "effectiveness", "engine")
 """Types whose additive-equivalent value is a factor minus 1 (k - 1, g - 1): no unit."""
-ANSWERS: dict[str, tuple[str, ...]] = {"blocked": ("blocked", "stuck"), "engine": ("effectiveness",)}
+ANSWERS: dict[str, tuple[str, ...]] = {"blocked": ("blocked", "stuck")}
 """World type -> the estimator types that answer it rightly (default: the same type only)."""
+FALLBACK_ANSWERS: dict[str, tuple[str, ...]] = {"engine": ("effectiveness",)}
+"""World type -> the types that answer it where the item has no entry of the right type: an engine
+loss is the throttle's lost effectiveness for an estimator without an engine entry."""
 MISSED = "missed"
 SETTLE_S = 2.0
 """The most probable type this long after the declaration: the `right_settled` figure beside the
@@ -110,9 +114,13 @@ def type_matches(world_type: str, entry_type: str) -> bool:
 
 
 def item_type_matches(entries: Sequence[Kind], world: Sequence[Kind]) -> list[list[int]]:
-    """Per world fault (nw,), the indices of the entries (nf,) of the same item and matching type."""
-    return [[j for j, e in enumerate(entries) if e.target == w.target and type_matches(w.type, e.type)]
-            for w in world]
+    """Per world fault (nw,), the indices of the entries (nf,) of the same item and matching type
+    (`type_matches`; else, where the item has none, of a `FALLBACK_ANSWERS` type)."""
+    def right(w: Kind) -> list[int]:
+        own = [j for j, e in enumerate(entries) if e.target == w.target and type_matches(w.type, e.type)]
+        fallback = FALLBACK_ANSWERS.get(w.type, ())
+        return own or [j for j, e in enumerate(entries) if e.target == w.target and e.type in fallback]
+    return [right(w) for w in world]
 
 
 def truth_columns(entries: Sequence[Any], channels: Sequence[Any]) -> list[int | None]:

@@ -292,7 +292,8 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     entries' rates around the jump (`drift_type.DriftJump`, N particles)."""
     if not layout.typed:
         return parts
-    evolution = TypedEvolution(layout, meas.H, wind_entry(estimator.faults))
+    evolution = TypedEvolution(layout, meas.H, wind_entry(estimator.faults),
+                               estimator.airframe_params().k_motor)
     pairs = sibling_pairs(layout)
     switch = TypeSwitch(pairs, estimator.settings.pi_switch, evolution, layout.sensor_row) \
         if pairs.size or evolution.stuck.size else None

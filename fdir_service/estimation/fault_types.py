@@ -12,9 +12,12 @@ two frames (`TypedEvolution`):
     jammed         f+ = f - (u_k - u_k-1)          the applied input u + f holds whatever u does
     effectiveness  f+ = f + phi (u_k - u_k-1)      the applied input (1 + phi) u follows the command
                    with phi = clip(f / u_k-1, -1, 0) scaled down; g = 1 + phi is the remaining gain
+    engine         f+ = f - (u_k - u_k-1) + (V_k - V_k-1) / k_m    the throttle gives no thrust:
+                   the throttle the accelerometer implies (thrust.py) is V / k_m whatever the command
 
 So a stuck sensor is told from a biased one when its state moves, a jammed surface from an offset
-one when its command moves. A noisy sensor's entry is k - 1 >= 0, k the multiplier of its row's
+one when its command moves, a dead engine from a throttle offset when the autopilot opens the
+throttle (the delivered throttle stays at V / k_m) and from a lost gain as the airspeed decays. A noisy sensor's entry is k - 1 >= 0, k the multiplier of its row's
 noise: it leaves the row's prediction alone and scales its likelihood (`TypedCorrection`, which
 also weighs a stuck row by its own, state-free predictive); a new one
 is drawn from its prior k - 1 ~ U(1, amplitude_max) (`NoisySentinels`). The parts wrap the predict,
@@ -35,6 +38,9 @@ if TYPE_CHECKING:
     from fdir_service.estimation.base import StepOutput
     from fdir_service.estimation.frame import Frame
 
+AIRSPEED_INPUT = 4
+"""The airspeed's position (m/s) in a kinematic process model's input u = [delta_e, delta_t, a_x,
+a_z, V, ...] (`kinematic.KinematicProcess`): the trusted pitot the thrust check reads."""
 NOISY_SIGMA = 0.25
 """The amplitude sigma of a noisy entry (k - 1): k below 1.25 is a faint fault (`jump.FaintExit`)."""
 
@@ -48,10 +54,11 @@ class TypedEvolution:
 
     layout: the fault layout; H (m, n): the measurement matrix (a stuck row's h_r is its airframe part);
     wind: the pitot's wind entry (`pitot.wind_entry`, -1: none), which a stuck or blocked pitot's
-    reading does not follow (`pitot.PitotRow.evolve`).
+    reading does not follow (`pitot.PitotRow.evolve`); k_motor (m/s per unit throttle): the
+    airframe's propeller constant, whose V / k_m is the throttle of zero thrust (engine entries).
     """
 
-    def __init__(self, layout: FaultLayout, H: np.ndarray, wind: int = -1) -> None:
+    def __init__(self, layout: FaultLayout, H: np.ndarray, wind: int = -1, k_motor: float = 1.0) -> None:
         self.H = np.asarray(H, dtype=float)
         self.stuck = np.sort(np.concatenate([_indices(layout, "stuck"), _indices(layout, "blocked")]))
         """Entries whose reading holds (stuck, and blocked pitots, which also follow the altitude)."""
@@ -65,6 +72,8 @@ class TypedEvolution:
         self.weak = _indices(layout, "effectiveness")
         self.weak_input = layout.actuator_input[self.weak]
         self.noisy = _indices(layout, "noisy")
+        self.engine = _indices(layout, "engine")
+        self.k_motor = float(k_motor)
 
     @property
     def needs_state(self) -> bool:
@@ -81,12 +90,20 @@ class TypedEvolution:
             dz = self.stuck_h @ (X[:N_AIRFRAME] - z_before)          # (k, N)
             dz[self.blocked] -= self._climb(X, z_before, F)
             F[self.stuck] -= dz * modes[self.stuck]
-        if u_prev is not None and (self.jammed.size or self.weak.size):
-            du = np.asarray(u[:2], dtype=float) - u_prev[:2]
-            F[self.jammed] -= du[self.jammed_input, None] * modes[self.jammed]
-            self._scale_weak(F, modes, du, u_prev)
+        if u_prev is not None and (self.jammed.size or self.weak.size or self.engine.size):
+            self._follow_commands(F, modes, u, u_prev)
         if self.noisy.size:
             F[self.noisy] = np.maximum(F[self.noisy], 0.0)
+
+    def _follow_commands(self, F: np.ndarray, modes: np.ndarray, u: np.ndarray, u_prev: np.ndarray) -> None:
+        """Jammed, effectiveness and engine entries (mode 1) follow this frame's command change, and
+        an engine's the airspeed's (in place; u, u_prev the process inputs of this and the last frame)."""
+        du = np.asarray(u[:2], dtype=float) - u_prev[:2]
+        F[self.jammed] -= du[self.jammed_input, None] * modes[self.jammed]
+        self._scale_weak(F, modes, du, u_prev)
+        if self.engine.size:
+            dc = (float(u[AIRSPEED_INPUT]) - float(u_prev[AIRSPEED_INPUT])) / self.k_motor
+            F[self.engine] += (dc - du[1]) * modes[self.engine]
 
     def _climb(self, X: np.ndarray, z_before: np.ndarray, F: np.ndarray) -> np.ndarray:
         """(b, N) m/s: a blocked pitot's reading change over the step, d V = g dh / V from V^2 = V0^2
@@ -110,6 +127,17 @@ class TypedEvolution:
             phi = np.where(u != 0.0, f / np.where(u != 0.0, u, 1.0), 0.0)
         return np.clip(phi, -1.0, 0.0)
 
+    def thrust_share(self, f: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The share of the commanded thrust an engine entry f (delivered - commanded throttle)
+        leaves, for the last frame's process input u: (d^2 - c^2) / (u_t^2 - c^2) with d = u_t + f
+        and c = V / k_m (thrust ~ k_m^2 d^2 - V^2, SPEC section 2), clipped to [0, 1]; 0 while the
+        command asks for (almost) no thrust."""
+        u_t, c = float(u[1]), float(u[AIRSPEED_INPUT]) / self.k_motor
+        asked = u_t * u_t - c * c
+        if asked < 0.01:
+            return np.zeros_like(f)
+        return np.clip(((u_t + f) ** 2 - c * c) / asked, 0.0, 1.0)
+
 
 class TypedPredict:
     """A predict part followed by the typed entries' evolution (`TypedEvolution`); keeps the last
@@ -128,14 +156,15 @@ class TypedPredict:
         z_before = X[:N_AIRFRAME].copy() if ev.needs_state else None
         Xp = self.inner.predict(X, modes, u, rng)
         ev.apply(z_before, Xp, modes, u, self.u_prev)
-        self.u_prev = np.array(u[:2], dtype=float)
+        self.u_prev = np.array(u, dtype=float)
         return Xp
 
     def annotate(self, out: StepOutput) -> None:
         """out.fault_types, and out.fault_value per type from each entry's fault f (out.fault_value
         when the jump set it, the mean over the mode-1 particles; else the estimate): a bias f, a
         stuck row's held reading f + h_r z, a jammed input's held position f + u, an
-        effectiveness's gain 1 + phi, a noisy row's k = 1 + f."""
+        effectiveness's gain 1 + phi, an engine's share of the commanded thrust, a noisy row's
+        k = 1 + f."""
         out.fault_types = self.layout.types
         f = (out.fault_value if out.fault_value is not None else out.fault_estimate).copy()
         value = f.copy()
@@ -144,6 +173,8 @@ class TypedPredict:
         if self.u_prev is not None:
             value[ev.jammed] = f[ev.jammed] + self.u_prev[ev.jammed_input]
             value[ev.weak] = 1.0 + ev.gain_loss(f[ev.weak], self.u_prev[ev.weak_input])
+            if ev.engine.size:
+                value[ev.engine] = ev.thrust_share(f[ev.engine], self.u_prev)
         value[ev.noisy] = 1.0 + f[ev.noisy]
         out.fault_value = value
 

@@ -201,7 +201,7 @@ def estimate_schema(fault_ids: Sequence[str], n_state: int, *, adaptive: bool,
         props[name] = {"type": "boolean"} if name == "resampled" else dict(NULLABLE_NUMBER)
     for f in fault_ids if typed else ():
         props[f"ft_{f}"] = {"type": "integer", "description": "fault type (FDIR_FAULT_TYPE: 0 bias, "
-                            "1 stuck, 2 noisy, 3 jammed, 4 effectiveness)"}
+                            "1 stuck, 2 noisy, 3 jammed, 4 effectiveness, 5 blocked, 6 drift, 7 engine)"}
     props["frame_time_s"]["description"] = "frame time, s (the autopilot's timestamp of the frame)"
     props["latency_s"]["description"] = "wall-clock processing time of the step, s (not reproducible)"
     props["n_eff"]["description"] = "effective sample size 1 / sum w^2"

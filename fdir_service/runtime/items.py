@@ -32,6 +32,7 @@ TYPE_CODES: dict[str, int] = {
     "effectiveness": dialect.FDIR_FAULT_TYPE_EFFECTIVENESS,
     "blocked": dialect.FDIR_FAULT_TYPE_BLOCKED,
     "drift": dialect.FDIR_FAULT_TYPE_DRIFT,
+    "engine": dialect.FDIR_FAULT_TYPE_ENGINE,
 }
 """Fault type name -> FDIR_FAULT_TYPE code (FDIR_ESTIMATE.fault_type, the recording's `ft_<id>`)."""
 TYPE_NAMES: dict[int, str] = {v: k for k, v in TYPE_CODES.items()}

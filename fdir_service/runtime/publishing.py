@@ -90,11 +90,14 @@ class Change(NamedTuple):
 def value_text(fault: FaultChannel, fault_type: str, value: float) -> str:
     """A fault's user-facing value in words: '+50.1 m' (bias, in the fault's unit), 'at 3.2 deg/s'
     (stuck or blocked reading, jammed position), 'x4.1' (noisy: noise multiplier k), '0%'
-    (effectiveness g), '+0.30 m/s' (drift: its rate, the fault's unit per second)."""
+    (effectiveness g), '+0.30 m/s' (drift: its rate, the fault's unit per second), 'out, thrust 3%'
+    (engine: the commanded thrust's share it gives)."""
     if fault_type == "noisy":
         return f"x{value:.1f}"
     if fault_type == "effectiveness":
         return f"{round(100 * value)}%" if math.isfinite(value) else f"{value}%"
+    if fault_type == "engine":                 # value: the commanded thrust's share it gives
+        return f"out, thrust {round(100 * value)}%" if math.isfinite(value) else f"out, thrust {value}%"
     val = value / fault.unit_scale
     unit = "" if fault.unit == "1" else f" {fault.unit}"
     if fault_type in ("stuck", "jammed", "blocked"):

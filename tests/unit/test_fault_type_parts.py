@@ -155,7 +155,8 @@ def test_the_catalogue_estimator_runs_one_step_with_every_type_and_reports_them(
     m = len(est.measurements)
     y = np.array([500.0, 500.0, 40.0, 1.0, 0.03, 0.0, 0.0, -9.8, 40.0, 0.0, 0.0])[:m]
     out = filt.step(0.05, y, np.ones(m, dtype=bool), np.array([-0.03, 0.5]))
-    assert set(out.fault_types) == {"bias", "stuck", "noisy", "drift", "jammed", "effectiveness", "blocked"}
+    assert set(out.fault_types) == {"bias", "stuck", "noisy", "drift", "jammed", "effectiveness", "blocked",
+                                    "engine"}
     assert np.isfinite(out.fault_value).all()
 
 

@@ -389,8 +389,10 @@ FDIR_FAULT_TYPE_BLOCKED = 5
 enums["FDIR_FAULT_TYPE"][5] = EnumEntry("FDIR_FAULT_TYPE_BLOCKED", """A pitot blocked, ram and drain: its total pressure trapped, the reading follows the altitude (V^2 = V0^2 + 2 g (h - h0)); value: the reading it gives, m/s.""")
 FDIR_FAULT_TYPE_DRIFT = 6
 enums["FDIR_FAULT_TYPE"][6] = EnumEntry("FDIR_FAULT_TYPE_DRIFT", """A sensor's offset ramps at a rate of its own; value: the rate, SI units of the target per second.""")
-FDIR_FAULT_TYPE_ENUM_END = 7
-enums["FDIR_FAULT_TYPE"][7] = EnumEntry("FDIR_FAULT_TYPE_ENUM_END", """""")
+FDIR_FAULT_TYPE_ENGINE = 7
+enums["FDIR_FAULT_TYPE"][7] = EnumEntry("FDIR_FAULT_TYPE_ENGINE", """The engine gives no thrust: the throttle the accelerometer implies is V / k_m whatever the command; value: the share of the commanded thrust it gives, 0..1 (unitless).""")
+FDIR_FAULT_TYPE_ENUM_END = 8
+enums["FDIR_FAULT_TYPE"][8] = EnumEntry("FDIR_FAULT_TYPE_ENUM_END", """""")
 
 # HL_FAILURE_FLAG
 enums["HL_FAILURE_FLAG"] = Enum()
@@ -17335,7 +17337,7 @@ class MAVLink(object):
         pmd                       : Missed-detection probability per channel (adaptive filters; NaN otherwise). (type:float)
         n_eff                     : Effective sample size of the particle filter (N for Kalman-type filters). (type:float)
         fault_type                : Most probable fault type (FDIR_FAULT_TYPE) per channel, two channels per byte: channel i in bits 4*(i%2)..4*(i%2)+3 of byte i/2 (low nibble = even channel). Packed because MAVLink 2 payloads end at 255 bytes (uint8_t[8] would make 256). All BIAS (and absent on the wire) when every channel is a single bias entry. (type:uint8_t)
-        fault_value               : User-facing value per channel, by fault_type: BIAS the offset (= fault), STUCK the held reading, JAMMED the held position (SI); NOISY the noise multiplier k, EFFECTIVENESS the remaining gain g (unitless); NaN for unused channels. All 0 (absent on the wire) when every channel is a single bias entry: read fault. (type:float)
+        fault_value               : User-facing value per channel, by fault_type: BIAS the offset (= fault), STUCK the held reading, JAMMED the held position (SI); NOISY the noise multiplier k, EFFECTIVENESS the remaining gain g, ENGINE the thrust's share left (unitless); NaN for unused channels. All 0 (absent on the wire) when every channel is a single bias entry: read fault. (type:float)
 
         """
         return MAVLink_fdir_estimate_message(time_boot_ms, frame_seq, fault_count, declared, flags, mask, state, state_std, fault, fault_std, p_fault, pfa, pmd, n_eff, fault_type, fault_value)
@@ -17369,7 +17371,7 @@ class MAVLink(object):
         pmd                       : Missed-detection probability per channel (adaptive filters; NaN otherwise). (type:float)
         n_eff                     : Effective sample size of the particle filter (N for Kalman-type filters). (type:float)
         fault_type                : Most probable fault type (FDIR_FAULT_TYPE) per channel, two channels per byte: channel i in bits 4*(i%2)..4*(i%2)+3 of byte i/2 (low nibble = even channel). Packed because MAVLink 2 payloads end at 255 bytes (uint8_t[8] would make 256). All BIAS (and absent on the wire) when every channel is a single bias entry. (type:uint8_t)
-        fault_value               : User-facing value per channel, by fault_type: BIAS the offset (= fault), STUCK the held reading, JAMMED the held position (SI); NOISY the noise multiplier k, EFFECTIVENESS the remaining gain g (unitless); NaN for unused channels. All 0 (absent on the wire) when every channel is a single bias entry: read fault. (type:float)
+        fault_value               : User-facing value per channel, by fault_type: BIAS the offset (= fault), STUCK the held reading, JAMMED the held position (SI); NOISY the noise multiplier k, EFFECTIVENESS the remaining gain g, ENGINE the thrust's share left (unitless); NaN for unused channels. All 0 (absent on the wire) when every channel is a single bias entry: read fault. (type:float)
 
         """
         self.send(self.fdir_estimate_encode(time_boot_ms, frame_seq, fault_count, declared, flags, mask, state, state_std, fault, fault_std, p_fault, pfa, pmd, n_eff, fault_type, fault_value), force_mavlink1=force_mavlink1)
