@@ -1,8 +1,9 @@
 """The catalogue estimator in moderate turbulence, flying (closed loop) through an actuator fault
 of each type at 10 s: the engine quits (its thrust to 0), the elevator binds where it is, the
 elevator keeps 30 % of its deflection. The item is declared as the service would (its P over its
-types, the declare hysteresis) within the issue's 2 s, the engine loss as the throttle's loss of
-effectiveness with the gain the world's engine leaves."""
+types, the declare hysteresis) within the issue's 2 s; the engine loss is named an engine (the
+service's type naming) with the thrust it leaves, where without the engine entry it is a lost gain
+or an offset of the throttle."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ import pytest
 
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
-from sim_bridge.type_yardstick import item_view, kind_of
+from fdir_service.estimator_config import parse_estimator
+from sim_bridge.type_yardstick import item_view, kind_of, named_entry
 from sim_bridge.yardstick import Hysteresis, declared
 
 ONSET_S = 10.0
@@ -44,19 +46,47 @@ def first_declaration(tr, sc, target: str) -> tuple[float, str, float, str]:
     return float(tr.t[k]), entries[j].type, float(tr.outputs[settle].value_of(j)), entries[later].type
 
 
-def test_an_engine_that_quits_is_declared_within_2_s_with_the_gain_it_leaves():
-    tr, sc = flight("real-engine", "dt_eff", 0.0, 16.0)
-    t, kind, _, settled = first_declaration(tr, sc, "delta_t")
+def named_type(tr, sc, target: str) -> tuple[float, str | None]:
+    """(time s of the first declaration of the item watching target, the type the service names for
+    it: `type_yardstick.named_entry`, None if it never names one)."""
+    entries = [kind_of(f) for f in sc.estimator.faults]
+    P = np.array([o.fault_probability for o in tr.outputs])
+    view = item_view(P, entries, [f.id for f in sc.estimator.faults])
+    i = view.targets.index(target)
+    dec = declared(tr.t, view.prob[:, i], Hysteresis())
+    k0 = int(np.flatnonzero(dec)[0])
+    named = named_entry(tr.t, dec, view, i, k0, Hysteresis())
+    return float(tr.t[k0]), None if named is None else entries[named[1]].type
+
+
+def without_engine_entry(sc):
+    """The scenario with its estimator's engine entry removed (the catalogue before the engine type)."""
+    est = sc.estimator
+    doc = dict(est.doc, faults=[f for f in est.doc["faults"] if f.get("type") != "engine"])
+    return dataclasses.replace(sc, estimator=parse_estimator(doc, "without-engine"))
+
+
+@pytest.mark.parametrize("run", [1, 2, 3])
+def test_an_engine_that_quits_is_named_an_engine_within_2_s_with_no_thrust_left(run):
+    _, sc = flight("real-engine", "dt_eff", 0.0, 16.0)
+    tr = fly(sc, "RJMRPF", run)
+    t, kind = named_type(tr, sc, "delta_t")
     assert ONSET_S <= t < ONSET_S + 2.0
-    # at a steady command a lost gain is an offset: the kind is told as the autopilot opens the throttle
-    assert kind in ("bias", "effectiveness") and settled == "effectiveness"
-    # zero thrust is the throttle V / k_m (~0.5 of the saturated command in the model's propeller,
-    # SPEC section 2): the gain read over the fault's last 2 s is the one the world applied
-    j = [f.id for f in sc.estimator.faults].index("dt_eff")
+    assert kind == "engine"
+    # the engine gives no thrust: the share of the commanded thrust read over the fault's last 2 s
+    j = [f.id for f in sc.estimator.faults].index("dt_eng")
     late = (tr.t >= 14.0) & (tr.t < 16.0)
-    read = np.mean([tr.outputs[k].value_of(j) for k in np.flatnonzero(late)])
-    applied = np.mean(1.0 + tr.faults[late, 0] / tr.u[late, 1])
-    assert 0.3 < applied < 0.7 and abs(read - applied) < 0.1
+    assert np.mean([tr.outputs[k].value_of(j) for k in np.flatnonzero(late)]) < 0.15
+
+
+def test_without_the_engine_entry_the_same_loss_is_named_another_type():
+    """What the engine entry changes: the catalogue without it declares the same engine loss in time
+    but names it a lost gain or an offset of the throttle (or nothing sure)."""
+    _, sc = flight("real-engine", "dt_eff", 0.0, 16.0)
+    sc = without_engine_entry(sc)
+    t, kind = named_type(fly(sc, "RJMRPF", 1), sc, "delta_t")
+    assert ONSET_S <= t < ONSET_S + 2.0
+    assert kind in ("bias", "effectiveness", None)
 
 
 @pytest.mark.parametrize("run", [1, 2, 3, 4])

@@ -79,6 +79,48 @@ def test_effectiveness_gain_loss_is_clipped_to_a_physical_gain():
     np.testing.assert_allclose(phi, [-1.0, 0.0, 0.0, -0.2])
 
 
+ENGINE = FaultLayout(("dt", "dt_eng"), ("actuator", "actuator"), ("delta_t", "delta_t"), ROWS,
+                     ("bias", "engine"))
+K_MOTOR = 80.0                                           # the Aerosonde's: zero thrust at V / 80
+
+
+def test_a_dead_engine_entry_holds_the_delivered_throttle_at_the_airspeed_over_k_m():
+    ev = TypedEvolution(ENGINE, MeasurementModel.build(ENGINE, SIGMA).H, k_motor=K_MOTOR)
+    X = np.zeros((ENGINE.n, 2))
+    modes = np.zeros((ENGINE.nf, 2), dtype=bool)
+    modes[1, 0] = True                                   # particle 0 holds the engine dead
+    X[N_AIRFRAME + 1] = 40.0 / K_MOTOR - 0.6             # delivers V / k_m = 0.5 at the command 0.6
+    u_prev = np.array([0.0, 0.6, 0.0, -9.8, 40.0])       # [de, dt, ax, az, V]: the process input
+    u = np.array([0.0, 1.0, 0.0, -9.8, 38.0])            # the autopilot opens the throttle, V decays
+    ev.apply(None, X, modes, u, u_prev)
+    np.testing.assert_allclose(u[1] + X[N_AIRFRAME + 1, 0], 38.0 / K_MOTOR)    # still no thrust
+    assert X[N_AIRFRAME + 1, 1] == 40.0 / K_MOTOR - 0.6                        # mode 0: unmoved
+
+
+def test_an_engine_entry_reads_as_the_share_of_the_commanded_thrust_it_gives():
+    ev = TypedEvolution(ENGINE, MeasurementModel.build(ENGINE, SIGMA).H, k_motor=K_MOTOR)
+    u = np.array([0.0, 1.0, 0.0, -9.8, 40.0])            # full throttle at 40 m/s: c = 0.5
+    f = np.array([0.5 - 1.0, 0.0, np.sqrt(0.5 * 1.0 + 0.5 * 0.25) - 1.0, 0.3])
+    np.testing.assert_allclose(ev.thrust_share(f, u), [0.0, 1.0, 0.5, 1.0])   # dead, healthy, half, clipped
+    idle = np.array([0.0, 0.5, 0.0, -9.8, 40.0])         # the command asks for no thrust: nothing to share
+    np.testing.assert_array_equal(ev.thrust_share(f, idle), 0.0)
+
+
+ENGINE_ENTRY = {"id": "dt_eng", "target": "delta_t", "type": "engine", "unit": "1", "sigma_f": 0.002,
+                "amplitude_max": 1.0}
+
+
+@pytest.mark.parametrize("estimator, change, match", [
+    ("aerosonde-catalogue", lambda d: d["faults"][4].update(type="engine"), r"faults\[4\]\.type.*throttle"),
+    ("aerosonde", lambda d: d["faults"].append(ENGINE_ENTRY), r"engine fault.*kinematic"),
+])
+def test_an_engine_fault_needs_the_throttle_and_the_thrust_check(estimator, change, match):
+    doc, _ = estimator_document(estimator)
+    change(doc)
+    with pytest.raises(ConfigError, match=match):
+        parse_estimator(doc, "x.toml")
+
+
 def frame(y: np.ndarray) -> Frame:
     return Frame.of(1.0, y, np.ones(3, dtype=bool), np.zeros(2), MEAS)
 

@@ -90,6 +90,7 @@ def test_item_frame_picks_the_most_probable_entry_its_type_and_value():
     (5, "effectiveness", 0.0, "FDIR dt effectiveness 0% p=0.97"),
     (5, "effectiveness", -0.004, "FDIR dt effectiveness 0% p=0.97"),
     (5, "effectiveness", 0.456, "FDIR dt effectiveness 46% p=0.97"),
+    (5, "engine", 0.03, "FDIR dt engine out, thrust 3% p=0.97"),
     (0, "bias", 50.1, "FDIR gnss fault +50.1 m p=0.97"),
 ])
 def test_statustext_in_words(j, fault_type, value, text):
@@ -162,8 +163,9 @@ def test_a_blocked_pitot_is_said_with_its_reading_and_every_type_has_its_own_cod
     assert statustext_for(pitot, 47.04, 0.97, True, "blocked") == "FDIR pitot blocked at 47.0 m/s p=0.97"
     assert TYPE_CODES["blocked"] == dialect.FDIR_FAULT_TYPE_BLOCKED == 5
     assert TYPE_CODES["drift"] == dialect.FDIR_FAULT_TYPE_DRIFT == 6
+    assert TYPE_CODES["engine"] == dialect.FDIR_FAULT_TYPE_ENGINE == 7
     assert len(set(TYPE_CODES.values())) == len(TYPE_CODES) and TYPE_NAMES[6] == "drift"
-    assert unpack_fault_types(pack_fault_types([5, 6, 0]))[:3] == [5, 6, 0]
+    assert unpack_fault_types(pack_fault_types([5, 6, 7, 0]))[:4] == [5, 6, 7, 0]
 
 
 def test_a_declaration_whose_types_share_the_evidence_is_unclear_until_one_holds_p_type():

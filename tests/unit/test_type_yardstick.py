@@ -83,6 +83,14 @@ def test_a_blocked_pitot_is_answered_by_the_stuck_airspeed_entry():
     assert ep["delay_s"] == pytest.approx(0.2, abs=1e-9)
 
 
+def test_an_engine_loss_is_answered_by_the_engine_entry_or_where_there_is_none_by_the_lost_gain():
+    engine = Kind("delta_t", "engine")
+    bias, weak, dead = Kind("delta_t", "bias"), Kind("delta_t", "effectiveness"), Kind("delta_t", "engine")
+    assert item_type_matches([bias, weak, dead], [engine]) == [[2]]
+    assert item_type_matches([bias, weak], [engine]) == [[1]]
+    assert item_type_matches([bias], [engine]) == [[]]
+
+
 def test_the_magnitude_error_is_the_right_entrys_over_the_active_frames_in_the_faults_unit():
     deg = math.pi / 180.0
     fault = WorldFault(Kind("baro_alt", "stuck"), "deg", deg)   # any unit: SI / scale
