@@ -26,7 +26,7 @@ class StepOutput:
     `ACTUATOR_FAULT_TYPES`; empty: all "bias"); fault_value (nf,) SI or None (= fault_estimate):
     what a user reads per type: a bias's offset, a stuck sensor's held reading, a jammed
     actuator's held position, a noisy sensor's noise multiplier k, an effectiveness's gain g, a
-    drift's rate (SI per second).
+    drift's rate (SI per second), an engine's share of the commanded thrust.
     """
 
     t: float

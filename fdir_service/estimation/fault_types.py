@@ -17,11 +17,12 @@ two frames (`TypedEvolution`):
 
 So a stuck sensor is told from a biased one when its state moves, a jammed surface from an offset
 one when its command moves, a dead engine from a throttle offset when the autopilot opens the
-throttle (the delivered throttle stays at V / k_m) and from a lost gain as the airspeed decays. A noisy sensor's entry is k - 1 >= 0, k the multiplier of its row's
-noise: it leaves the row's prediction alone and scales its likelihood (`TypedCorrection`, which
-also weighs a stuck row by its own, state-free predictive); a new one
-is drawn from its prior k - 1 ~ U(1, amplitude_max) (`NoisySentinels`). The parts wrap the predict,
-correction and sentinel slots of a recipe (factory.py), so a filter without typed faults is unchanged.
+throttle (the delivered throttle stays at V / k_m) and from a lost gain as the airspeed decays.
+A noisy sensor's entry is k - 1 >= 0, k the multiplier of its row's noise: it leaves the row's
+prediction alone and scales its likelihood (`TypedCorrection`, which also weighs a stuck row by its
+own, state-free predictive); a new one is drawn from its prior k - 1 ~ U(1, amplitude_max)
+(`NoisySentinels`). The parts wrap the predict, correction and sentinel slots of a recipe
+(factory.py), so a filter without typed faults is unchanged.
 """
 
 from __future__ import annotations

@@ -305,8 +305,8 @@ class FaultDeclared(Event):
     statustext: str
     fault_type: str = "bias"
     """The type the declaration names (`publishing.UNCLEAR` while no type holds a share >= p_type
-    of P(item)); `estimate` is the most probable type's user-facing value (SI; a noisy k and an
-    effectiveness g unitless)."""
+    of P(item)); `estimate` is the most probable type's user-facing value (SI; a noisy k, an
+    effectiveness g and an engine's thrust share unitless)."""
     level: ClassVar[str] = "warning"
 
     @property

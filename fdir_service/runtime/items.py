@@ -1,14 +1,16 @@
 """Monitored items: the targets the service reports on, each watched by one or more typed entries.
 
 An estimator's `[[faults]]` entries (nf of them, config order) each watch a `target` (a measurement
-row or an actuator) with a `type` ("bias", "stuck", "noisy" for sensors; "bias", "jammed",
-"effectiveness" for actuators). A monitored *item* is a target with its entries; it is named by
-the id of its first entry. Item order = order of first appearance in the config, so an estimator
-whose entries all watch different targets has items = entries, in the same order.
+row or an actuator) with a `type` ("bias", "stuck", "noisy", "drift", "blocked" for sensors;
+"bias", "jammed", "effectiveness", "engine" for actuators). A monitored *item* is a target with its
+entries; it is named by the id of its first entry. Item order = order of first appearance in the
+config, so an estimator whose entries all watch different targets has items = entries, in the same
+order.
 
 Per frame an item has P(item faulty), its most probable type (the entry with the highest mode-1
 probability; the first one on a tie) and that entry's user-facing value (SI, or unitless for a
-noisy multiplier k and an effectiveness gain g). `combine_probability` documents the combination.
+noisy multiplier k, an effectiveness gain g and an engine's thrust share). `combine_probability`
+documents the combination.
 
 Pure functions; shapes: nf entries, ni items (ni <= nf).
 """

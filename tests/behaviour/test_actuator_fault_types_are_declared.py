@@ -12,9 +12,9 @@ import dataclasses
 import numpy as np
 import pytest
 
+from fdir_service.estimator_config import parse_estimator
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
-from fdir_service.estimator_config import parse_estimator
 from sim_bridge.type_yardstick import item_view, kind_of, named_entry
 from sim_bridge.yardstick import Hysteresis, declared
 
