@@ -113,6 +113,17 @@ class FaultSpec:
     delivered throttle minus the commanded one (the published value is the thrust's share left)."""
     rate_sigma: float = 0.0
     """A drift fault's rate random walk (SI per s per sqrt(s); `drift_type.DriftJump`)."""
+    value_max: float | None = None
+    """The largest |entry| the fault can reach (SI), file key `value_max` (default amplitude_max):
+    under parts.mode0 = "drift" every entry is held within it (`predict.DriftPredict`). A held
+    value's entry grows past its onset (amplitude_max, the jump's prior) as its target moves: a
+    jammed elevator's offset from its command spans the surface's travel."""
+
+    @property
+    def bound(self) -> float:
+        """The entry's clip bound, SI (value_max, else amplitude_max, else unbounded)."""
+        top = self.value_max if self.value_max is not None else self.amplitude_max
+        return math.inf if top is None else top
     on_exit: str = "reset"
     """A sensor fault's 1 -> 0 exit: "reset" (the fault ended: its entry to 0) or "reset_or_fold"
     (half the exits fold the entry into the airframe state instead: the state was wrong, this
@@ -287,6 +298,7 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
     target = t.take("target", "string", choices=watchable + ACTUATORS)
     unit = t.take("unit", "string", choices=tuple(UNITS))
     amax = t.take("amplitude_max", "number", None, check=POSITIVE)
+    vmax = t.take("value_max", "number", None, check=POSITIVE)
     spec = FaultSpec(
         id=fid, target=target, kind="actuator" if target in ACTUATORS else "sensor", unit=unit,
         sigma_f=t.take("sigma_f", "number", check=NON_NEGATIVE),
@@ -297,9 +309,13 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         drift_sigma=t.take("drift_sigma", "number", 0.0, check=NON_NEGATIVE),
         on_exit=t.take("on_exit", "string", "reset", choices=EXIT_CHOICES),
         rate_sigma=t.take("rate_sigma", "number", 0.0, check=NON_NEGATIVE),
+        value_max=None if vmax is None else vmax * UNITS[unit],
         fault_type=t.take("type", "string", "bias",
                           choices=ACTUATOR_FAULT_TYPES if target in ACTUATORS else SENSOR_FAULT_TYPES),
     )
+    if spec.value_max is not None and spec.amplitude_max is not None and spec.value_max < spec.amplitude_max:
+        raise ConfigError(f"{t.key('value_max')}: expected at least amplitude_max "
+                          f"({amax} {unit}): the entry must reach the amplitudes it may jump to, got {vmax}")
     if spec.kind == "actuator" and spec.on_exit != "reset":
         raise ConfigError(f"{t.key('on_exit')}: an actuator fault has no sensor row to fold; "
                           f"expected \"reset\", got {spec.on_exit!r}")

@@ -279,7 +279,7 @@ def _predictor(rec: Recipe, estimator: EstimatorConfig, process, q_std: np.ndarr
         return ModeGatedPredict(process, q_std)
     if mode0 == "drift":
         drift = np.array([f.drift_sigma for f in estimator.faults]) * np.sqrt(estimator.dt_s)
-        bound = np.array([f.amplitude_max or np.inf for f in estimator.faults])
+        bound = np.array([f.bound for f in estimator.faults])
         return DriftPredict(process, q_std, drift, bound, tuple(estimator.settings.q_tail))
     return GaussianPredict(process, q_std)
 

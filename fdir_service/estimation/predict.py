@@ -51,8 +51,8 @@ class DriftPredict(GaussianPredict):
     """As `GaussianPredict`, but a fault entry's noise depends on its mode (parts.mode0 = "drift"):
     q_std in mode 1 (a fault evolving), drift_std (nf,) per-step std in mode 0 (the sensor's slow
     fault-free error: a bias walk that no jump explains). Fault entries stay within +-bound (nf,)
-    (the amplitude prior's support, faults.amplitude_max; inf: unbounded), so an unobservable fault
-    cannot wander off and drag the airframe state with it."""
+    (`FaultSpec.bound`: faults.value_max, else the amplitude prior's support amplitude_max; inf:
+    unbounded), so an unobservable fault cannot wander off and drag the airframe state with it."""
 
     def __init__(self, process, q_std: np.ndarray, drift_std: np.ndarray, bound: np.ndarray,
                  q_tail: tuple[float, float] = (0.0, 1.0)) -> None:
