@@ -101,6 +101,21 @@ def test_an_engine_that_comes_back_leaves_the_pitot_undeclared(run):
     assert not declared(tr.t, view.prob[:, i], Hysteresis())[tr.t >= 18.0 + 3.0].any()
 
 
+@pytest.mark.parametrize("run", [1, 2, 3, 4])
+def test_a_jam_whose_command_runs_to_its_stop_leaves_the_state_tracked(run):
+    """The autopilot, which cannot know the surface is bound, runs the elevator command to its 30 deg
+    stop; the jam's entry (held position minus command) grows past its onset prior (amplitude_max
+    15 deg) to its value_max (60 deg). With every entry clipped at its prior, as before value_max, 3
+    of these 4 flights lost the state during the jam (altitude 6-25 m, w 9-15 m/s off: the gyro or
+    the attitude was blamed for what the clipped jam could not explain); the jam's clip alone, 1."""
+    _, sc = flight("real-actuators", "de_jam", 0.0, 15.0, seconds=15.5)
+    tr = fly(sc, "RJMRPF", run)
+    jam = (tr.t >= ONSET_S) & (tr.t < 15.0)
+    assert np.degrees(np.abs(tr.u[jam, 0]).max()) > 25.0          # the command ran to its stop
+    error = np.abs(tr.z - np.array([o.x_mean[:5] for o in tr.outputs]))[jam]
+    assert error[:, 0].max() < 3.0 and error[:, 2].max() < 3.0      # altitude m, w m/s
+
+
 @pytest.mark.parametrize("fault_id, amplitude, end_s", [("de_jam", 0.0, 14.0), ("de_eff", 0.3, 18.0)])
 def test_an_elevator_that_binds_or_weakens_is_declared_within_2_s(fault_id, amplitude, end_s):
     tr, sc = flight("real-actuators", fault_id, amplitude, end_s)

@@ -121,6 +121,23 @@ def test_an_engine_fault_needs_the_throttle_and_the_thrust_check(estimator, chan
         parse_estimator(doc, "x.toml")
 
 
+def test_an_entry_is_held_within_its_value_max_not_its_jump_prior():
+    est = load_estimator("aerosonde-catalogue")
+    spec = {f.id: f for f in est.faults}
+    assert spec["de_jam"].amplitude_max == pytest.approx(np.radians(15.0))
+    assert spec["de_jam"].bound == pytest.approx(np.radians(60.0))          # the surface's travel
+    assert spec["de"].bound == spec["de"].amplitude_max                    # default: the prior
+    filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=50)
+    np.testing.assert_allclose(filt.parts.predict.inner.bound[:, 0], [f.bound for f in est.faults])
+
+
+def test_a_value_max_below_the_jump_prior_fails_naming_the_key():
+    doc, _ = estimator_document("aerosonde-catalogue")
+    doc["faults"][4]["value_max"] = 5.0                                    # de: amplitude_max 15 deg
+    with pytest.raises(ConfigError, match=r"faults\[4\]\.value_max: expected at least amplitude_max"):
+        parse_estimator(doc, "x.toml")
+
+
 def frame(y: np.ndarray) -> Frame:
     return Frame.of(1.0, y, np.ones(3, dtype=bool), np.zeros(2), MEAS)
 
