@@ -118,16 +118,16 @@ class FaultSpec:
     under parts.mode0 = "drift" every entry is held within it (`predict.DriftPredict`). A held
     value's entry grows past its onset (amplitude_max, the jump's prior) as its target moves: a
     jammed elevator's offset from its command spans the surface's travel."""
+    on_exit: str = "reset"
+    """A sensor fault's 1 -> 0 exit: "reset" (the fault ended: its entry to 0) or "reset_or_fold"
+    (half the exits fold the entry into the airframe state instead: the state was wrong, this
+    sensor right; `jump.ExitFold`)."""
 
     @property
     def bound(self) -> float:
         """The entry's clip bound, SI (value_max, else amplitude_max, else unbounded)."""
         top = self.value_max if self.value_max is not None else self.amplitude_max
         return math.inf if top is None else top
-    on_exit: str = "reset"
-    """A sensor fault's 1 -> 0 exit: "reset" (the fault ended: its entry to 0) or "reset_or_fold"
-    (half the exits fold the entry into the airframe state instead: the state was wrong, this
-    sensor right; `jump.ExitFold`)."""
 
     @property
     def unit_scale(self) -> float:
@@ -313,23 +313,30 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         fault_type=t.take("type", "string", "bias",
                           choices=ACTUATOR_FAULT_TYPES if target in ACTUATORS else SENSOR_FAULT_TYPES),
     )
+    _check_fault(t, spec)
+    t.finish()
+    return spec
+
+
+def _check_fault(t: TomlTable, spec: FaultSpec) -> None:
+    """What one fault entry's keys must agree on (ConfigError naming the key)."""
     if spec.value_max is not None and spec.amplitude_max is not None and spec.value_max < spec.amplitude_max:
+        scale = spec.unit_scale
         raise ConfigError(f"{t.key('value_max')}: expected at least amplitude_max "
-                          f"({amax} {unit}): the entry must reach the amplitudes it may jump to, got {vmax}")
+                          f"({spec.amplitude_max / scale:g} {spec.unit}): the entry must reach the "
+                          f"amplitudes it may jump to, got {spec.value_max / scale:g}")
     if spec.kind == "actuator" and spec.on_exit != "reset":
         raise ConfigError(f"{t.key('on_exit')}: an actuator fault has no sensor row to fold; "
                           f"expected \"reset\", got {spec.on_exit!r}")
-    if spec.fault_type == "blocked" and target != AIRSPEED_ROW:
+    if spec.fault_type == "blocked" and spec.target != AIRSPEED_ROW:
         raise ConfigError(f"{t.key('type')}: only the pitot can be blocked; expected target = "
-                          f"\"{AIRSPEED_ROW}\" for a blocked fault, got {target!r}")
-    if spec.fault_type == "engine" and target != "delta_t":
+                          f"\"{AIRSPEED_ROW}\" for a blocked fault, got {spec.target!r}")
+    if spec.fault_type == "engine" and spec.target != "delta_t":
         raise ConfigError(f"{t.key('type')}: only the throttle has an engine; expected target = "
-                          f"\"delta_t\" for an engine fault, got {target!r}")
+                          f"\"delta_t\" for an engine fault, got {spec.target!r}")
     if spec.fault_type != "bias" and spec.on_exit != "reset":
         raise ConfigError(f"{t.key('on_exit')}: only a bias can be folded into the state; "
                           f"expected \"reset\" for a {spec.fault_type} fault, got {spec.on_exit!r}")
-    t.finish()
-    return spec
 
 
 def _faults(root: TomlTable, rows: tuple[str, ...]) -> tuple[FaultSpec, ...]:
