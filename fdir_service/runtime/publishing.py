@@ -94,10 +94,9 @@ def value_text(fault: FaultChannel, fault_type: str, value: float) -> str:
     (engine: the commanded thrust's share it gives)."""
     if fault_type == "noisy":
         return f"x{value:.1f}"
-    if fault_type == "effectiveness":
-        return f"{round(100 * value)}%" if math.isfinite(value) else f"{value}%"
-    if fault_type == "engine":                 # value: the commanded thrust's share it gives
-        return f"out, thrust {round(100 * value)}%" if math.isfinite(value) else f"out, thrust {value}%"
+    if fault_type in ("effectiveness", "engine"):   # a gain, or the commanded thrust's share left
+        percent = f"{round(100 * value)}%" if math.isfinite(value) else f"{value}%"
+        return percent if fault_type == "effectiveness" else f"out, thrust {percent}"
     val = value / fault.unit_scale
     unit = "" if fault.unit == "1" else f" {fault.unit}"
     if fault_type in ("stuck", "jammed", "blocked"):
