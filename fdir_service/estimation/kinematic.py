@@ -32,7 +32,9 @@ rates").
 u, w are the body-axis velocities over the ground (what GNSS-aided ODOMETRY reports), so wind and
 gusts appear only through the measured specific force: this model has nothing to mis-model in
 moving air or on another airframe. One step over dt with the attitude at mid-step
-(theta + q dt / 2) in the gravity and climb terms.
+(theta + q dt / 2) in the gravity and climb terms; with a pitching moment, theta also takes its
+pitch acceleration over the frame, q' dt^2 / 2 (an elevator that snaps pitches the aircraft within
+a frame).
 
 An elevator acts on q only through the pitching moment. With a `PitchMoment` the q row becomes
 
@@ -171,5 +173,7 @@ class KinematicProcess:
             self._add_body_rate_terms(out, u, q, c)
         if self.moment is not None:
             de = self._elevator_of(X, float(u[0]))
-            out[4] += h * self.moment.qdot(q, de, az, self._airspeed(X, float(u[4])))
+            qdot = self.moment.qdot(q, de, az, self._airspeed(X, float(u[4])))
+            out[3] += (0.5 * h * h) * qdot
+            out[4] += h * qdot
         return out[:, 0] if one else out
