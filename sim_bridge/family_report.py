@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 from sim_bridge.report import _fmt
+from sim_bridge.yardstick import rate_upper_bound
 
 FAULT_COLUMNS = ("f_theta", "f_q")
 """Fault RMSE columns of the summary (the faults the real family injects and the monitor watches)."""
@@ -49,17 +50,20 @@ def yardstick_rows(docs: dict[str, dict]) -> list[dict]:
 
 
 def yardstick_table(docs: dict[str, dict]) -> list[str]:
-    head = ("| world | filter | false alarms / flight hour | false alarms | fault-free hours "
-            "| faults declared | median delay (s) | p90 delay (s) | right fault isolated | ")
+    head = ("| world | filter | false alarms / flight hour | 95 % upper bound | false alarms "
+            "| fault-free hours | faults declared | median delay (s) | p90 delay (s) "
+            "| right fault isolated | ")
     L = [head + " | ".join(f"{c} RMSE" for c in FAULT_COLUMNS) + " |",
-         "|---|---|---|---|---|---|---|---|---|" + "---|" * len(FAULT_COLUMNS)]
+         "|---|---|---|---|---|---|---|---|---|---|" + "---|" * len(FAULT_COLUMNS)]
     for r in yardstick_rows(docs):
         fa_h = r["false_alarms"] / r["hours"] if r["hours"] > 0 else None
+        bound = rate_upper_bound(r["false_alarms"], r["hours"])
         y, rmse = r["faulty"] if r["faulty"] else ({}, {})
         det = f"{y['detected']} / {y['episodes']}" if y else "-"
         delay = y.get("delay_s", {}) if y else {}
-        L.append(f"| {r['world']} | {r['filter']} | {_fmt(fa_h, 2)} | {r['false_alarms']} | "
-                 f"{r['hours']:.2f} | {det} | {_fmt(delay.get('median'), 2)} | {_fmt(delay.get('p90'), 2)} | "
+        L.append(f"| {r['world']} | {r['filter']} | {_fmt(fa_h, 2)} | {_fmt(bound, 2)} | "
+                 f"{r['false_alarms']} | {r['hours']:.2f} | {det} | "
+                 f"{_fmt(delay.get('median'), 2)} | {_fmt(delay.get('p90'), 2)} | "
                  f"{_fmt(y.get('isolation_accuracy') if y else None, 2)} | "
                  + " | ".join(_fmt(rmse.get(c, {}).get("mean")) for c in FAULT_COLUMNS) + " |")
     return L + [""]

@@ -26,7 +26,7 @@ from sim_bridge.metrics import (
 )
 from sim_bridge.scenario import Scenario
 from sim_bridge.type_yardstick import GOALS, MISSED, is_typed, scenario_yardsticks
-from sim_bridge.yardstick import GRACE_S, yardstick
+from sim_bridge.yardstick import GRACE_S, rate_upper_bound, yardstick
 
 DEG = 180.0 / math.pi
 STATE_QUANTITIES = (("p_d", "m", 1.0), ("u", "m/s", 1.0), ("w", "m/s", 1.0), ("theta", "deg", DEG),
@@ -691,13 +691,15 @@ def yardstick_markdown(doc: dict) -> list[str]:
          "alarm is a stretch of fault-free flight time (no injected fault, none ended within "
          f"{GRACE_S:g} s) with a fault declared, whether the declaration started there or still "
          "stands from an injected fault's time; definitions in sim_bridge/yardstick.py.", "",
-         "| filter | false alarms / flight hour | false alarms | fault-free hours | time falsely declared | "
-         "faults declared | median delay (s) | p90 delay (s) | right fault isolated |",
-         "|---|---|---|---|---|---|---|---|---|"]
+         "| filter | false alarms / flight hour | 95 % upper bound | false alarms | fault-free hours | "
+         "time falsely declared | faults declared | median delay (s) | p90 delay (s) | "
+         "right fault isolated |",
+         "|---|---|---|---|---|---|---|---|---|---|"]
     for name, y in rows:
-        L.append(f"| {name} | {_fmt(y['false_alarms_per_hour'], 2)} | {y['false_alarms']} | "
-                 f"{_fmt(y['fault_free_hours'], 2)} | {_fmt(y.get('falsely_declared_fraction'))} | "
-                 f"{y['detected']} / {y['episodes']} | "
+        bound = rate_upper_bound(y["false_alarms"], y["fault_free_hours"])
+        L.append(f"| {name} | {_fmt(y['false_alarms_per_hour'], 2)} | {_fmt(bound, 2)} | "
+                 f"{y['false_alarms']} | {_fmt(y['fault_free_hours'], 2)} | "
+                 f"{_fmt(y.get('falsely_declared_fraction'))} | {y['detected']} / {y['episodes']} | "
                  f"{_fmt(y['delay_s']['median'], 2)} | {_fmt(y['delay_s']['p90'], 2)} | "
                  f"{_fmt(y['isolation_accuracy'], 2)} |")
     L.append("")

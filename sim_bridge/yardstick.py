@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.stats import chi2
 
 from fdir_service.recording.schemas import finite_or_none
 
@@ -34,6 +35,15 @@ GRACE_S = 3.0
 this long (the service's clear hold is 1 s; the estimate needs a little more to settle)."""
 ROC_THRESHOLDS = (0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
 EPS_S = 1e-6
+
+
+def rate_upper_bound(count: int, hours: float, confidence: float = 0.95) -> float | None:
+    """The one-sided upper confidence bound (per hour) on a Poisson rate of which `count` events
+    were seen in `hours`: chi2(confidence, 2 (count + 1)) / (2 hours), the exact (Garwood) bound.
+    0 false alarms in 10 h says below 0.30 per hour at 95 %; None without hours."""
+    if hours <= 0:
+        return None
+    return float(chi2.ppf(confidence, 2 * (count + 1)) / (2.0 * hours))
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,16 @@ import pytest
 from fdir_service.estimation.base import StepOutput
 from fdir_service.mavlink import new_mavlink
 from fdir_service.runtime.publishing import Publisher
-from sim_bridge.yardstick import GRACE_S, Hysteresis, declared, pool, run_yardstick, yardstick
+from sim_bridge.report import yardstick_markdown
+from sim_bridge.yardstick import (
+    GRACE_S,
+    Hysteresis,
+    declared,
+    pool,
+    rate_upper_bound,
+    run_yardstick,
+    yardstick,
+)
 from tests.helpers.experiments import ch4_service
 
 DT = 0.05
@@ -55,6 +64,23 @@ def test_one_false_alarm_in_ten_fault_free_minutes_is_six_per_hour():
     pooled = pool([y], ["gnss"])
     assert pooled["false_alarms_per_hour"] == pytest.approx(6.0, rel=1e-3)
     assert pooled["episodes"] == 0 and pooled["detection_fraction"] is None
+
+
+def test_the_report_prints_the_false_alarm_rates_95_percent_upper_bound():
+    # the exact Poisson bounds: 0 in 10 h -> 3.0 / 10 h, 2 in 30 h -> 6.30 / 30 h
+    assert rate_upper_bound(0, 10.0) == pytest.approx(0.2996, abs=1e-4)
+    assert rate_upper_bound(2, 30.0) == pytest.approx(0.2098, abs=1e-4)
+    assert rate_upper_bound(1, 0.0) is None
+    # ten hours cannot show 0.1 per hour; thirty fault-free hours with none can
+    assert rate_upper_bound(0, 10.0) > 0.1 > rate_upper_bound(0, 30.0)
+    y = {"false_alarms": 2, "fault_free_hours": 30.0, "false_alarms_per_hour": 2 / 30.0,
+         "detected": 0, "episodes": 0, "delay_s": {"median": None, "p90": None},
+         "isolation_accuracy": None, "isolation": {}, "p_declare": 0.9}
+    lines = yardstick_markdown({"filters": {"RJMRPF": {"yardstick": y}}})
+    head = next(line for line in lines if line.startswith("| filter"))
+    row = next(line for line in lines if line.startswith("| RJMRPF"))
+    cells = dict(zip(head.split(" | "), row.split(" | "), strict=True))
+    assert cells["false alarms / flight hour"] == "0.07" and cells["95 % upper bound"] == "0.21"
 
 
 def test_each_false_alarm_is_listed_with_its_run_item_time_and_length():
