@@ -769,6 +769,20 @@ def _type_line(name: str, ty: str, r: dict) -> str:
             f"{_fmt(r['right_item_fraction'], 2)} | {mag} |")
 
 
+def yardstick_lines(y: dict | None) -> list[str]:
+    """What `sim-bridge experiment` prints of a filter's safety yardstick y: false alarms per
+    fault-free hour with the rate's 95 % upper bound, and the faults declared; [] without one."""
+    if not y:
+        return []
+    bound = rate_upper_bound(y["false_alarms"], y["fault_free_hours"])
+    line = (f"false alarms {y['false_alarms']} in {y['fault_free_hours']:.2f} fault-free h: "
+            f"{_fmt(y['false_alarms_per_hour'], 2)} per hour (95 % upper bound {_fmt(bound, 2)})")
+    if y["episodes"]:
+        line += (f"; faults declared {y['detected']} / {y['episodes']}, "
+                 f"median delay {_fmt(y['delay_s']['median'], 2)} s")
+    return [line]
+
+
 def by_type_lines(y: dict | None) -> list[str]:
     """What `sim-bridge experiment` prints per world fault type of a typed world's yardstick y
     (one line each, the goals beside the figures); [] for a bias-only world."""

@@ -57,7 +57,7 @@ def _out_dir(args: argparse.Namespace, sid: str) -> Path:
 def _run_one(args: argparse.Namespace, sid: str, filters: list[str] | None) -> tuple[str, dict, Path]:
     """One scenario's campaign and report; prints its summary lines. (id, results doc, folder)."""
     from sim_bridge.campaign import run_campaign
-    from sim_bridge.report import by_type_lines, write_report
+    from sim_bridge.report import by_type_lines, write_report, yardstick_lines
 
     sc = load_scenario(sid)
     out = _out_dir(args, sc.id)
@@ -72,7 +72,7 @@ def _run_one(args: argparse.Namespace, sid: str, filters: list[str] | None) -> t
         means = ", ".join(f"{q} {v['mean']:.4g}" for q, v in fd["rmse"].items()
                           if q.startswith("f_") and v["mean"] is not None)
         print(f"  {name:8s} {fd['step_ms']:.3f} ms/step  mean RMSE {means}")
-        for line in by_type_lines(fd.get("yardstick")):
+        for line in yardstick_lines(fd.get("yardstick")) + by_type_lines(fd.get("yardstick")):
             print(f"    {line}")
     return sc.id, doc, out
 

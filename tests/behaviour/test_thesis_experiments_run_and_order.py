@@ -51,7 +51,9 @@ def test_experiment_command_writes_results(sid, tmp_path, capsys):
     assert doc["runs"] == 2 and doc["particles"] == 200 and doc["seed"] == 3
     _check_structure(doc, load_scenario(sid))
     assert "| mean | thesis mean | ratio |" in (tmp_path / "report.md").read_text()
-    assert "wall time" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "wall time" in out
+    assert out.count("per hour (95 % upper bound") == len(doc["filters"])   # every filter's yardstick
     if sid == "ch6":   # adaptive filters carry Pfa / Pmd
         assert doc["filters"]["AJMRPF"]["detection"]["theta"]["detected_fraction"] is not None
 
