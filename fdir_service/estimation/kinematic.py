@@ -32,9 +32,8 @@ rates").
 u, w are the body-axis velocities over the ground (what GNSS-aided ODOMETRY reports), so wind and
 gusts appear only through the measured specific force: this model has nothing to mis-model in
 moving air or on another airframe. One step over dt with the attitude at mid-step
-(theta + q dt / 2) in the gravity and climb terms; with a pitching moment, theta also takes its
-pitch acceleration over the frame, q' dt^2 / 2 (an elevator that snaps pitches the aircraft within
-a frame).
+(theta + q dt / 2) in the gravity and climb terms; once the gyro has corrected the frame's pitch
+rate, theta takes the trapezoid of the two rates (`close_frame`).
 
 An elevator acts on q only through the pitching moment. With a `PitchMoment` the q row becomes
 
@@ -111,8 +110,7 @@ class KinematicProcess:
         self._elevator = np.flatnonzero(layout.actuator_input == 0)
         if moment is not None and self._elevator.size:
             gain = self.dt * moment.scale(v_ref) * moment.elevator_gain
-            self.B_actuator[3, self._elevator] = 0.5 * self.dt * gain
-            self.B_actuator[4, self._elevator] = gain
+            self.B_actuator[4, self._elevator] = gain      # theta takes it at close_frame
 
     def use_wind(self, pitot) -> None:
         """Take each particle's own airspeed u + W from the pitot's wind (a `pitot.PitotRow`) once
@@ -173,7 +171,13 @@ class KinematicProcess:
             self._add_body_rate_terms(out, u, q, c)
         if self.moment is not None:
             de = self._elevator_of(X, float(u[0]))
-            qdot = self.moment.qdot(q, de, az, self._airspeed(X, float(u[4])))
-            out[3] += (0.5 * h * h) * qdot
-            out[4] += h * qdot
+            out[4] += h * self.moment.qdot(q, de, az, self._airspeed(X, float(u[4])))
         return out[:, 0] if one else out
+
+    def close_frame(self, prior: np.ndarray, X: np.ndarray) -> None:
+        """In place, once the frame's correction has moved X (n, N): theta += dt (q+ - q) / 2, so
+        that theta over the frame is the trapezoid of its pitch rates, q of the prior (n, N) (the same
+        particles before the step) and q+ as the gyro corrected it, not as the moment predicted it.
+        A surface that snaps pitches the aircraft at ~100 deg/s within a frame; theta + q dt alone
+        then lags by dt (q+ - q) / 2 per frame."""
+        X[3] += (0.5 * self.dt) * (X[4] - prior[4])

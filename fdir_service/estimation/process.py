@@ -30,7 +30,15 @@ def _row_input(a, N: int) -> bool:
     return type(a) is float or getattr(a, "shape", None) in ((), (N,))
 
 
-class LinearProcess:
+class WholeFrameStep:
+    """A process model whose propagate is the whole frame: nothing to close after the correction
+    (`KinematicProcess.close_frame` is the one that has something)."""
+
+    def close_frame(self, prior: np.ndarray, X: np.ndarray) -> None:
+        """Nothing: X (n, N) after the frame's correction stays as it is."""
+
+
+class LinearProcess(WholeFrameStep):
     """Linear discrete model about trim on the extended state (faults: random walk)."""
 
     kind = "linear"
@@ -99,7 +107,7 @@ def _discretised(params: AirframeParams, trim_z: np.ndarray, trim_u: np.ndarray,
     return Bc, E
 
 
-class NonlinearProcess:
+class NonlinearProcess(WholeFrameStep):
     """The nonlinear airframe (SPEC section 2) over one frame dt, vectorised over particles."""
 
     kind = "nonlinear"

@@ -20,6 +20,8 @@ class Predictor(Protocol):
     """predict: the process model plus its noise (`predict.GaussianPredict`, `ModeGatedPredict`)."""
 
     process: object
+    """propagate(X, u): the frame's step; close_frame(prior, X): in place once the correction has
+    moved X (`process.WholeFrameStep`: nothing; `kinematic.KinematicProcess`: theta's trapezoid)."""
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:
