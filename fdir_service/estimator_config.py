@@ -122,6 +122,14 @@ class FaultSpec:
     """A sensor fault's 1 -> 0 exit: "reset" (the fault ended: its entry to 0) or "reset_or_fold"
     (half the exits fold the entry into the airframe state instead: the state was wrong, this
     sensor right; `jump.ExitFold`)."""
+    fold_after: str | None = None
+    """With "reset_or_fold": the sensor row whose fault must have been declared (its entries'
+    P >= 0.5) within fold_window_s, unless this fault's own declaration is younger than
+    fold_young_s, for this fault to fold (`jump.FoldArming`); None: it always may."""
+    fold_window_s: float = 10.0
+    """s after a step with the fold_after row's P >= 0.5 during which this fault may fold."""
+    fold_young_s: float = 3.0
+    """s after this fault's own item's P rose past 0.5 during which it may fold anyway."""
 
     @property
     def bound(self) -> float:
@@ -308,6 +316,9 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         pi10=t.take("pi10", "number", None, check=UNIT_INTERVAL),
         drift_sigma=t.take("drift_sigma", "number", 0.0, check=NON_NEGATIVE),
         on_exit=t.take("on_exit", "string", "reset", choices=EXIT_CHOICES),
+        fold_after=t.take("fold_after", "string", None, choices=watchable),
+        fold_window_s=t.take("fold_window_s", "number", 10.0, check=POSITIVE),
+        fold_young_s=t.take("fold_young_s", "number", 3.0, check=NON_NEGATIVE),
         rate_sigma=t.take("rate_sigma", "number", 0.0, check=NON_NEGATIVE),
         value_max=None if vmax is None else vmax * UNITS[unit],
         fault_type=t.take("type", "string", "bias",
@@ -334,6 +345,12 @@ def _check_fault(t: TomlTable, spec: FaultSpec) -> None:
     if spec.fault_type == "engine" and spec.target != "delta_t":
         raise ConfigError(f"{t.key('type')}: only the throttle has an engine; expected target = "
                           f"\"delta_t\" for an engine fault, got {spec.target!r}")
+    if spec.fold_after is not None and spec.on_exit != "reset_or_fold":
+        raise ConfigError(f"{t.key('fold_after')}: only a fault that folds can wait for another's; "
+                          f"expected on_exit = \"reset_or_fold\", got {spec.on_exit!r}")
+    if spec.fold_after == spec.target:
+        raise ConfigError(f"{t.key('fold_after')}: expected another sensor's row than the fault's "
+                          f"own, got {spec.fold_after!r}")
     if spec.fault_type != "bias" and spec.on_exit != "reset":
         raise ConfigError(f"{t.key('on_exit')}: only a bias can be folded into the state; "
                           f"expected \"reset\" for a {spec.fault_type} fault, got {spec.on_exit!r}")
@@ -344,6 +361,11 @@ def _faults(root: TomlTable, rows: tuple[str, ...]) -> tuple[FaultSpec, ...]:
     ids = [f.id for f in faults]
     if len(set(ids)) != len(ids):
         raise ConfigError(f"faults: fault ids must be unique, got {ids}")
+    watched = {f.target for f in faults}
+    for i, f in enumerate(faults):
+        if f.fold_after is not None and f.fold_after not in watched:
+            raise ConfigError(f"faults[{i}].fold_after: expected the row of another fault of this "
+                              f"estimator ({', '.join(sorted(watched))}), got {f.fold_after!r}")
     return faults
 
 

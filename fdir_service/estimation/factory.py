@@ -42,6 +42,7 @@ from fdir_service.estimation.jump import (
     ExitFold,
     FaintExit,
     FixedTransition,
+    FoldArming,
     MarkovJump,
     NoCarry,
     NoFold,
@@ -252,13 +253,30 @@ def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, me
     carry = _carry(estimator, layout, process)
     forced_zero = estimator.settings.mode0 == "forced_zero"
     folding = np.array([f.on_exit == "reset_or_fold" for f in estimator.faults], dtype=bool)
-    fold = ExitFold.for_sensors(meas.H, np.where(folding, layout.sensor_row, -1)) \
-        if folding.any() else NoFold()
+    fold = ExitFold.for_sensors(meas.H, np.where(folding, layout.sensor_row, -1),
+                                _fold_arming(estimator)) if folding.any() else NoFold()
     faint = estimator.settings.pi10_faint
     exit_ = FaintExit(amp.sigma, faint) if faint > 0 else None
     jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry, fold, exit_,
                       exit_to_drift=estimator.settings.mode0 == "drift")
     return jump, _sentinel_weighting(estimator, layout, meas, amp, carry)
+
+
+def _fold_arming(estimator: EstimatorConfig) -> FoldArming | None:
+    """The folds that wait for another sensor's fault (faults.fold_after), or None."""
+    faults = estimator.faults
+    gated = [j for j, f in enumerate(faults) if f.fold_after is not None]
+    if not gated:
+        return None
+
+    def entries(row: str) -> np.ndarray:
+        return np.array([i for i, f in enumerate(faults) if f.target == row], dtype=int)
+
+    steps = [(int(round(faults[j].fold_window_s / estimator.dt_s)),
+              int(round(faults[j].fold_young_s / estimator.dt_s))) for j in gated]
+    return FoldArming(len(faults), np.array(gated), [entries(faults[j].fold_after) for j in gated],
+                      [entries(faults[j].target) for j in gated], np.array([s[0] for s in steps]),
+                      np.array([s[1] for s in steps]))
 
 
 def _regulariser(rec: Recipe, estimator: EstimatorConfig, amp: AmplitudePredictor, h: float):

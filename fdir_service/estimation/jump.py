@@ -170,17 +170,24 @@ class ExitFold:
     (H_r^T / |H_r|^2 on the airframe part of row r); zero columns for faults that do not fold.
     """
 
-    def __init__(self, G: np.ndarray) -> None:
+    def __init__(self, G: np.ndarray, arming: FoldArming | None = None) -> None:
         self.G = np.asarray(G, dtype=float)
         self.columns = np.flatnonzero(np.abs(self.G).sum(axis=0) > 0)
         c = self.columns
         self._rows = slice(int(c[0]), int(c[-1]) + 1) if c.size and np.all(np.diff(c) == 1) else c
         """The folding faults' rows as a slice when they are consecutive (views, not copies)."""
+        self.arming = arming
+        """None (every folding fault may fold), or the `FoldArming` of faults.fold_after."""
+
+    def observe(self, modes: np.ndarray, w: np.ndarray) -> None:
+        """Before `capture`, each step: the cloud's modes (nf, N) and prior weights (N,)."""
+        if self.arming is not None:
+            self.arming.observe(modes, w)
 
     @classmethod
-    def for_sensors(cls, H: np.ndarray, sensor_row: np.ndarray) -> ExitFold:
+    def for_sensors(cls, H: np.ndarray, sensor_row: np.ndarray, arming: FoldArming | None = None) -> ExitFold:
         """From the measurement matrix H (m, n) and each fault's row (nf,), -1 for actuators."""
-        return cls(state_gain(H, sensor_row))
+        return cls(state_gain(H, sensor_row), arming)
 
     def capture(self, F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
                 reset_to: np.ndarray | None = None) -> np.ndarray | None:
@@ -193,6 +200,10 @@ class ExitFold:
         fold &= modes[c]
         if not fold.any():
             return None
+        if self.arming is not None:
+            fold &= self.arming.armed[c, None]
+            if not fold.any():
+                return None
         gone = F[c] if reset_to is None else F[c] - reset_to[c, None]
         return np.where(fold, gone, 0.0)
 
@@ -202,8 +213,59 @@ class ExitFold:
             X[:N_AIRFRAME] += self.G[:, self.columns] @ values
 
 
+_FAR = np.iinfo(np.int64).max // 4
+"""A step count that stands for "never" (and does not overflow when counted on)."""
+
+
+class FoldArming:
+    """Folds that wait for another sensor's fault (faults.fold_after): a gated fault folds only
+    while its own declaration is young (its item's P rose past 0.5 at most `young` steps ago) or
+    within `window` steps of a step where the entries of its fold_after row held P >= 0.5.
+
+    The attitude state is the integral of the gyro-pinned pitch rate, so it is only far off after
+    the gyro was. While a gyro fault builds up unseen the attitude sensor takes the blame, and its
+    folds keep the attitude on the sensor (the blame is young); once the gyro is declared they fold
+    the attitude it left wrong. A standing attitude-sensor fault no longer folds after its first
+    seconds: with every exit free to fold, a 7-deg fault put a few percent of the cloud 7 deg off,
+    which until the altimeters and the velocities disowned them (about 1 s) tied the attitude to the
+    altitude in the cloud's covariance; the Kalman gain turned altimeter noise into every particle's
+    attitude, the crowd's attitude was 1 deg off when the fault ended, and a new attitude fault was
+    declared (docs/robustness.md, "Attitude folds that wait for the gyro").
+
+    gated (k,) fault indices; arming, own: per gated fault, the entry indices of its fold_after
+    row and of its own item; window, young (k,) steps.
+    """
+
+    def __init__(self, nf: int, gated: np.ndarray, arming: list[np.ndarray], own: list[np.ndarray],
+                 window: np.ndarray, young: np.ndarray) -> None:
+        self.gated = np.asarray(gated, dtype=int)
+        self.arming = [np.asarray(a, dtype=int) for a in arming]
+        self.own = [np.asarray(o, dtype=int) for o in own]
+        self.window = np.asarray(window, dtype=np.int64)
+        self.young = np.asarray(young, dtype=np.int64)
+        self.since_arming = np.full(self.gated.size, _FAR, dtype=np.int64)
+        """Steps since each gated fault's fold_after entries last held P >= 0.5."""
+        self.blamed_for = np.full(self.gated.size, _FAR, dtype=np.int64)
+        """Steps since each gated fault's own item last rose past P = 0.5 (far while below)."""
+        self.armed = np.ones(nf, dtype=bool)
+        """(nf,) bool: the faults that may fold this step."""
+
+    def observe(self, modes: np.ndarray, w: np.ndarray) -> None:
+        """Update `armed` from the modes (nf, N) and prior weights (N,) of this step."""
+        p = modes @ w
+        for i, (arming, own) in enumerate(zip(self.arming, self.own, strict=True)):
+            self.since_arming[i] = 0 if p[arming].sum() >= 0.5 else self.since_arming[i] + 1
+            blamed = p[own].sum() >= 0.5
+            self.blamed_for[i] = (0 if self.blamed_for[i] >= _FAR else self.blamed_for[i] + 1) \
+                if blamed else _FAR
+        self.armed[self.gated] = (self.since_arming <= self.window) | (self.blamed_for <= self.young)
+
+
 class NoFold:
     """Every 1 -> 0 exit resets its fault entry (faults.on_exit = "reset", the thesis)."""
+
+    def observe(self, modes: np.ndarray, w: np.ndarray) -> None:
+        """Nothing folds: nothing to watch."""
 
     def capture(self, F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
                 reset_to: np.ndarray | None = None) -> None:
@@ -318,6 +380,7 @@ class MarkovJump:
         carried = self.carry.capture(F)
         reset_to = self.drift.update(F, modes, w) if self.drift is not None else None
         pi10 = self.exit.pi10(F, self.transition.pi10, reset_to)
+        self.fold.observe(modes, w)
         folded = self.fold.capture(F, modes, v, pi10, reset_to)
         anchored = None if self.switch is None else self.switch.anchor(F, modes, v, pi10, innov, frame)
         may = avail if self.switch is None else self.switch.open(avail, modes)

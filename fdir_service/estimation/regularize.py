@@ -109,11 +109,15 @@ MIN_EFF_PER_STATE = 2.0
 
 
 def mode_codes(modes: np.ndarray) -> np.ndarray:
-    """(N,) int64 code of each particle's mode pattern from modes (nf, N) bool: bit j = fault j."""
-    if modes.shape[0] == 1:
+    """(N,) int64 code of each particle's mode pattern from modes (nf, N) bool: bit j = fault j
+    (one float product, exact below 2^53; a loop over the faults beyond 52)."""
+    nf = modes.shape[0]
+    if nf == 1:
         return modes[0].astype(np.int64)
+    if nf <= 52:
+        return (np.exp2(np.arange(nf)) @ modes).astype(np.int64)
     code = np.zeros(modes.shape[1], dtype=np.int64)
-    for j in range(modes.shape[0]):
+    for j in range(nf):
         code |= modes[j].astype(np.int64) << j
     return code
 

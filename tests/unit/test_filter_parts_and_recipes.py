@@ -14,7 +14,7 @@ from fdir_service.estimation.layout import FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.predict import GaussianPredict, ModeGatedPredict
 from fdir_service.estimation.recipes import FILTER_NAMES, PARTICLE_FILTERS, RECIPES, recipe
-from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter
+from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter, mode_codes
 from fdir_service.estimation.resample import BelowEffectiveSize, EveryStep
 from fdir_service.estimation.sentinels import PriorSentinels, ThesisSentinels, prior_log_constants
 from fdir_service.estimator_config import load_estimator
@@ -242,6 +242,13 @@ def test_global_jitter_spreads_by_h2_over_n_plus_4_and_shrinkage_keeps_the_sprea
     X = X0.copy()
     NoJitter().jitter(X, X0, None, None, None, P, rng)
     assert np.array_equal(X, X0)
+
+
+@pytest.mark.parametrize("nf", [1, 2, 5, 19, 52, 60])
+def test_mode_codes_set_bit_j_for_fault_j(nf):
+    modes = np.random.default_rng(nf).random((nf, 500)) < 0.5
+    expected = sum(modes[j].astype(np.int64) << j for j in range(nf))
+    np.testing.assert_array_equal(mode_codes(modes), expected)
 
 
 def test_per_mode_jitter_leaves_mode0_fault_entries_exactly_zero():

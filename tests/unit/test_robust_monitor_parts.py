@@ -324,6 +324,68 @@ def test_half_the_exits_fold_the_altimeter_fault_into_the_altitude(robust):
     assert kept.mean() == pytest.approx(0.5, abs=0.04)
 
 
+def _modes_with(p_theta: float, p_q: float, ids: list[str], N: int = 100) -> np.ndarray:
+    """Modes (nf, N) whose theta and q entries are in mode 1 on those shares of N equal weights."""
+    modes = np.zeros((len(ids), N), bool)
+    modes[ids.index("theta"), :int(round(p_theta * N))] = True
+    modes[ids.index("q"), :int(round(p_q * N))] = True
+    return modes
+
+
+def test_attitude_folds_wait_for_the_gyro_once_the_declaration_is_old(robust):
+    """faults.fold_after = "q" (`jump.FoldArming`): theta folds in its declaration's first
+    fold_young_s (3 s = 60 steps) and within fold_window_s (10 s = 200 steps) of a step with
+    P(q) >= 0.5; the altimeters and the gyro always may."""
+    f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
+    arming = f.parts.jump.fold.arming
+    ids = [x.id for x in robust.faults]
+    th = ids.index("theta")
+    w = np.full(100, 0.01)
+    arming.observe(_modes_with(0.0, 0.0, ids), w)
+    assert not arming.armed[th] and arming.armed[[ids.index(k) for k in ("gnss", "baro", "q")]].all()
+    for _ in range(61):                                   # a standing attitude fault: young ...
+        arming.observe(_modes_with(0.95, 0.0, ids), w)
+        assert arming.armed[th]
+    arming.observe(_modes_with(0.95, 0.0, ids), w)        # ... then old: no more folds
+    assert not arming.armed[th]
+    arming.observe(_modes_with(0.95, 0.6, ids), w)        # the gyro declared: 200 steps of folds
+    for _ in range(200):
+        arming.observe(_modes_with(0.95, 0.1, ids), w)
+        assert arming.armed[th]
+    arming.observe(_modes_with(0.95, 0.1, ids), w)
+    assert not arming.armed[th]
+
+
+def test_an_attitude_exit_that_may_not_fold_resets(robust):
+    f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
+    fold = f.parts.jump.fold
+    ids = [x.id for x in robust.faults]
+    th, b = ids.index("theta"), ids.index("baro")
+    F = np.zeros((len(ids), 1000))
+    F[th], F[b] = 0.12, 3.0
+    modes = np.zeros((len(ids), 1000), bool)
+    modes[[th, b]] = True
+    v = np.random.default_rng(3).random(modes.shape)
+    fold.arming.armed[:] = True
+    fold.arming.armed[th] = False
+    folded = fold.capture(F, modes, v, np.ones((len(ids), 1)))
+    rows = list(fold.columns)
+    assert not folded[rows.index(th)].any()                            # reset, every one
+    np.testing.assert_array_equal(folded[rows.index(b)] != 0, v[b] < 0.5)  # half fold, as before
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"on_exit": "reset"}, "fold_after"),                 # only a fault that folds waits
+    ({"fold_after": "theta"}, "another sensor"),          # not its own row
+    ({"fold_after": "u"}, "row of another fault"),        # a row no fault watches
+])
+def test_fold_after_names_another_watched_row(change, message):
+    doc = _robust_doc()
+    next(f for f in doc["faults"] if f["id"] == "theta").update(change)
+    with pytest.raises(ConfigError, match=message):
+        parse_estimator(doc)
+
+
 def test_an_actuator_fault_cannot_fold():
     doc = _robust_doc()
     doc["faults"][-1]["on_exit"] = "reset_or_fold"
