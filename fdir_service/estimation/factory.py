@@ -272,11 +272,13 @@ def _fold_arming(estimator: EstimatorConfig) -> FoldArming | None:
     def entries(row: str) -> np.ndarray:
         return np.array([i for i, f in enumerate(faults) if f.target == row], dtype=int)
 
-    steps = [(int(round(faults[j].fold_window_s / estimator.dt_s)),
-              int(round(faults[j].fold_young_s / estimator.dt_s))) for j in gated]
+    def steps(seconds: list[float]) -> np.ndarray:
+        return np.rint(np.array(seconds) / estimator.dt_s).astype(np.int64)
+
     return FoldArming(len(faults), np.array(gated), [entries(faults[j].fold_after) for j in gated],
-                      [entries(faults[j].target) for j in gated], np.array([s[0] for s in steps]),
-                      np.array([s[1] for s in steps]))
+                      [entries(faults[j].target) for j in gated],
+                      steps([faults[j].fold_window_s for j in gated]),
+                      steps([faults[j].fold_young_s for j in gated]))
 
 
 def _regulariser(rec: Recipe, estimator: EstimatorConfig, amp: AmplitudePredictor, h: float):
