@@ -181,6 +181,7 @@ class FilterSettings:
     #                                      the same item (stuck <-> bias ...; `fault_types.TypeSwitch`)
     saddlepoint_window: int = 3
     sentinel_weighting: str = "prior"    # "thesis" (Alg. 4.1 as written) | "prior" (p(f | jump) / q(f))
+    sentinel_clip: float = 0.0           # "prior": a sentinel's draw clipped at this many sigmas (0: off)
     jitter: str = "per_mode"             # "global" (one kernel) | "per_mode"
     adaptive_transition: str = "proposal"  # "thesis" (eq. 6.1) | "proposal" (importance-weighted)
     actuator_sentinel: str = "consistent"  # "thesis" | "consistent" (B_a dF moves the state)
@@ -452,6 +453,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
                                   check=POSITIVE),
         rate_window_s=f.take("rate_window_s", "number", d.rate_window_s, check=POSITIVE),
         thrust_sigma=f.take("thrust_sigma", "number", d.thrust_sigma, check=POSITIVE),
+        sentinel_clip=f.take("sentinel_clip", "number", d.sentinel_clip, check=NON_NEGATIVE),
         q_tail=tuple(f.take("q_tail", "numbers", d.q_tail, check=ALL_NON_NEGATIVE)),
         wind_gust_sigma=f.take("wind_gust_sigma", "number", d.wind_gust_sigma, check=NON_NEGATIVE),
         wind_gust_tau_s=f.take("wind_gust_tau_s", "number", d.wind_gust_tau_s, check=POSITIVE),

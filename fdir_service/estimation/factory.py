@@ -242,7 +242,8 @@ def _sentinel_weighting(estimator: EstimatorConfig, layout: FaultLayout, meas: M
     log_c[[layout.type_of(j) in NO_ONSET_STEP for j in range(layout.nf)]] = np.nan   # no spread, no prior
     if not np.isfinite(log_c).any():
         return ThesisSentinels()
-    return PriorSentinels(log_c, layout.sensor_row, meas.sigma, amp, carry)
+    return PriorSentinels(log_c, layout.sensor_row, meas.sigma, amp, carry,
+                          clip=estimator.settings.sentinel_clip)
 
 
 def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,

@@ -11,6 +11,15 @@ mode-0 particle a sentinel is then worth ~ 1/L against N(e; 0, s^2): it wins onl
 e^2 / s^2 > 2 log(L / (sqrt(2 pi) s)) (a GLR threshold) instead of always (the thesis's point
 mass at A fits row r exactly). An actuator fault (with `jump.ActuatorCarry`) uses its amplitude's
 sigma for s, and its sentinel's airframe state moves by B_a s eps with the fault.
+
+`clip` (parts.sentinel_clip, in sigmas; 0 = off): eps is clipped to [-clip, clip]. The weight
+p / q grows as exp(eps^2 / 2) while a sentinel whose frame is explained anyway (a gyro sentinel's
+carry keeps its gyro prediction) loses nothing by the draw's distance: with the uniform prior's
+tails far heavier than the normal proposal's, a 5-sigma draw (about twice in ten fault-free hours
+of the robust monitor's sentinels) took 98 % of the weight in one frame and a gyro fault was
+declared for 2-3 s (docs/robustness.md, "Attitude sentinels as many as the gyro's"). Clipped, the
+proposal is the normal truncated at clip sigma with its tails' mass at the bounds, and p / q is
+bounded by exp(clip^2 / 2) sqrt(2 pi) s / L.
 """
 
 from __future__ import annotations
@@ -54,7 +63,7 @@ class PriorSentinels:
     """
 
     def __init__(self, log_c: np.ndarray, sensor_row: np.ndarray, row_sigma: np.ndarray,
-                 amplitude: AmplitudePredictor, carry) -> None:
+                 amplitude: AmplitudePredictor, carry, clip: float = 0.0) -> None:
         self.log_c = np.asarray(log_c, dtype=float)
         self.sensor_row = np.asarray(sensor_row, dtype=int)
         self.row_sigma = np.asarray(row_sigma, dtype=float)
@@ -62,6 +71,8 @@ class PriorSentinels:
         self.carry_index: dict[int, int] = getattr(carry, "index", {})
         self.carry_B = getattr(carry, "B", None)
         self._rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        self.clip = float(clip)
+        """eps bound in sigmas (parts.sentinel_clip); 0: no bound."""
 
     def rows(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(faults k with the prior weighting that could jump this frame (k,), their
@@ -102,6 +113,8 @@ class PriorSentinels:
         if cols.size == 0:
             return np.zeros(X.shape[1])
         eps = rng.standard_normal(cols.size)
+        if self.clip > 0.0:
+            np.clip(eps, -self.clip, self.clip, out=eps)
         step = consts[rows, 0] * eps
         X[N_AIRFRAME + js[rows], cols] += step
         for k, j in enumerate(js.tolist()):

@@ -165,6 +165,27 @@ def test_prior_sentinels_weigh_only_sentinels_of_rows_that_arrived():
     assert ThesisSentinels().weigh(X, _frame(), sentinels, np.random.default_rng(3)) is None
 
 
+
+def test_clipped_prior_sentinels_bound_the_draw_and_its_weight():
+    """parts.sentinel_clip = 3: the draws beyond 3 sigma sit at 3 sigma, so no sentinel's p / q
+    exceeds exp(4.5) sqrt(2 pi) s / L; the draws within are the unclipped part's, bit for bit."""
+    log_c = prior_log_constants(np.array([100.0, 1.0]), LAYOUT.sensor_row, np.zeros(2, bool))
+    sentinels = np.zeros((2, N), dtype=bool)
+    sentinels[0] = True                                  # 20 000 draws: ~54 beyond 3 sigma
+    out = {}
+    for clip in (0.0, 3.0):
+        X = np.zeros((7, N))
+        part = PriorSentinels(log_c, LAYOUT.sensor_row, SIGMA, FakeAmplitude(0.0), NoCarry(), clip=clip)
+        bonus = part.weigh(X, _frame(), sentinels, np.random.default_rng(3))
+        out[clip] = (X[5] / 5.0, bonus)
+    (eps0, bonus0), (eps3, bonus3) = out[0.0], out[3.0]
+    tail = np.abs(eps0) > 3.0
+    assert 20 < tail.sum() < 100 and np.abs(eps0).max() > 3.5
+    np.testing.assert_array_equal(eps3[~tail], eps0[~tail])
+    np.testing.assert_allclose(eps3[tail], 3.0 * np.sign(eps0[tail]))
+    top = log_c[0] + np.log(5.0) + 4.5
+    assert bonus3.max() == pytest.approx(top) and bonus0.max() > top + 1.0
+
 # ----------------------------------------------------------------------------- correction
 def test_likelihood_is_the_gaussian_of_the_assumed_noise():
     X, modes, w = _cloud()
