@@ -165,7 +165,6 @@ def test_prior_sentinels_weigh_only_sentinels_of_rows_that_arrived():
     assert ThesisSentinels().weigh(X, _frame(), sentinels, np.random.default_rng(3)) is None
 
 
-
 def test_clipped_prior_sentinels_bound_the_draw_and_its_weight():
     """parts.sentinel_clip = 3: the draws beyond 3 sigma sit at 3 sigma, so no sentinel's p / q
     exceeds exp(4.5) sqrt(2 pi) s / L; the draws within are the unclipped part's, bit for bit."""
@@ -185,6 +184,7 @@ def test_clipped_prior_sentinels_bound_the_draw_and_its_weight():
     np.testing.assert_allclose(eps3[tail], 3.0 * np.sign(eps0[tail]))
     top = log_c[0] + np.log(5.0) + 4.5
     assert bonus3.max() == pytest.approx(top) and bonus0.max() > top + 1.0
+
 
 # ----------------------------------------------------------------------------- correction
 def test_likelihood_is_the_gaussian_of_the_assumed_noise():
