@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from fdir_service.errors import ConfigError
-from fdir_service.estimation.correction import ALTITUDE_GAINS
+from fdir_service.estimation.correction import ALTITUDE_GAINS, GAIN_COVARIANCES
 from fdir_service.estimation.recipes import FILTER_NAMES
 from fdir_service.paths import airframe_path, estimator_path
 from fdir_service.tomltable import (
@@ -196,6 +196,7 @@ class FilterSettings:
     held_airspeed_sigma: float = 0.5     # m/s: the airspeed's gusts an airspeed hold lets through
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
     #                                      innovations may move the altitude in the Kalman correction
+    gain_covariance: str = "cloud"       # "cloud" | "within_mode": the Kalman gain's covariance
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -430,7 +431,7 @@ _CHOICES = {
     "mode0": ("forced_zero", "reset_on_exit", "drift"), "sentinel_weighting": ("thesis", "prior"),
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
-    "altitude_gain": ALTITUDE_GAINS,
+    "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
 

@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.linalg.lapack import dpotrf, dtrtri
 
+from fdir_service.estimation.regularize import mode_codes
+
 if TYPE_CHECKING:
     from fdir_service.estimation.frame import Frame
 
@@ -50,6 +52,19 @@ def weighted_mean_cov(X: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndar
 def weighted_cov(X: np.ndarray, w: np.ndarray, mean: np.ndarray) -> np.ndarray:
     """Weighted covariance (n, n) of a cloud X (n, N) with weights w (N,) about its mean (n,) = X @ w."""
     dX = X - mean[:, None]
+    return (dX * w) @ dX.T
+
+
+def within_mode_cov(X: np.ndarray, w: np.ndarray, modes: np.ndarray) -> np.ndarray:
+    """Weighted covariance (n, n) of X (n, N) about each particle's mode-pattern mean, pooled over
+    the patterns of modes (nf, N): the spread within a hypothesis, not the distance between
+    hypotheses (a particle alone in its pattern adds nothing)."""
+    code = mode_codes(modes)
+    groups = np.flatnonzero(np.bincount(code))
+    member = code == groups[:, None]
+    share = member * w
+    means = (share @ X.T) / np.maximum(share.sum(axis=1), 1e-300)[:, None]
+    dX = X - means.T @ member
     return (dX * w) @ dX.T
 
 
@@ -133,6 +148,10 @@ class Likelihood:
         return row_loglik(X, frame)
 
 
+GAIN_COVARIANCES = ("cloud", "within_mode")
+"""parts.gain_covariance: the covariance P the Kalman gain and the predictive S are built from:
+the whole cloud's, or `within_mode_cov` (each particle about its own mode pattern's mean)."""
+
 ALTITUDE_GAINS = ("all_rows", "altimeters", "no_pitch_rate")
 """parts.altitude_gain: which rows' innovations may move the altitude (p_d, state 0) in the Kalman
 correction: every row; only the rows that measure it; every row but the gyro's (state 4)."""
@@ -156,20 +175,30 @@ class KalmanCorrection:
     upset the pitch rate's and the velocities' innovations are the kinematic model's lag, and the
     cloud's covariance of the altitude with those states turned them into metres of altitude that
     the altimeters' drift entries then absorbed (docs/robustness.md, run 56 of
-    real-turbulence-faultfree, seed 1); the default keeps every row."""
+    real-turbulence-faultfree, seed 1); the default keeps every row.
+    covariance (`GAIN_COVARIANCES`): "within_mode" builds the gain from the spread within each mode
+    pattern. The cloud's covariance also holds the distance between hypotheses: with a crowd that
+    blames the barometer for an altitude 5 m off beside one that does not, the altitude and the
+    barometer's fault entry are anti-correlated across the cloud, the barometer's gain on the
+    altitude is ~0, and the fault-free particles drift off the barometer they should follow
+    (docs/robustness.md, "A gain from within each hypothesis")."""
 
-    def __init__(self, pin, hold_mode0_faults: bool = False, altitude_gain: str = "all_rows") -> None:
+    def __init__(self, pin, hold_mode0_faults: bool = False, altitude_gain: str = "all_rows",
+                 covariance: str = "cloud") -> None:
         self.pin = pin
         self.hold_mode0_faults = bool(hold_mode0_faults)
         if altitude_gain not in ALTITUDE_GAINS:
             raise ValueError(f"altitude_gain {altitude_gain!r}: expected one of {ALTITUDE_GAINS}")
+        if covariance not in GAIN_COVARIANCES:
+            raise ValueError(f"covariance {covariance!r}: expected one of {GAIN_COVARIANCES}")
         self.altitude_gain = altitude_gain
+        self.within_mode = covariance == "within_mode"
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         mm = frame.mm
         if mm.m == 0:
             return np.zeros(X.shape[1])
-        _, P = weighted_mean_cov(X, w)
+        P = within_mode_cov(X, w, modes) if self.within_mode else weighted_mean_cov(X, w)[1]
         K, S_inv = kalman_gain(P, mm.H, mm.R)
         cut = altitude_gain_cut(mm.H, self.altitude_gain)
         if cut is not None:

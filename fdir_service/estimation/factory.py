@@ -358,7 +358,7 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
         predict=_predictor(rec, estimator, process, q_std),
         jump=jump, sentinel_weighting=sentinels,
         correction=(KalmanCorrection(jump.pin, rec.has_modes and est.mode0 == "drift",
-                                     est.altitude_gain)
+                                     est.altitude_gain, est.gain_covariance)
                     if rec.correction == "kalman" else Likelihood()),
         resample_due=EveryStep() if every else BelowEffectiveSize(est.resample_threshold),
         resampler=resampler("systematic" if every else est.resampler),
