@@ -57,6 +57,7 @@ def test_overrides_merge_tables_and_replace_lists():
     ({"measurements": {"rows": ["theta", "pitot"]}}, "measurements.rows"),
     ({"truth": {"sigma": 1.0}}, "truth"),                 # no world in an estimator file
     ({"parts": {"sentinel_clip": -3.0}}, "parts.sentinel_clip"),
+    ({"parts": {"gain_covariance": "pooled"}}, "parts.gain_covariance"),
     ({"faults": [{"id": "toolongid", "target": "q", "unit": "deg/s", "sigma_f": 0.0}]}, "faults"),
 ])
 def test_bad_keys_are_named_with_the_file(override, named):

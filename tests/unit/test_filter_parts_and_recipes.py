@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 from fdir_service.estimation.adaptive import AdaptiveTransition
-from fdir_service.estimation.correction import KalmanCorrection, Likelihood, weighted_mean_cov
+from fdir_service.estimation.correction import (
+    KalmanCorrection,
+    Likelihood,
+    weighted_mean_cov,
+    within_mode_cov,
+)
 from fdir_service.estimation.factory import build_filter
 from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.jump import ActuatorCarry, FixedTransition, MarkovJump, NoCarry, NoJump
@@ -244,6 +249,54 @@ def test_the_pitch_rate_row_alone_can_be_kept_from_moving_the_altitude():
     KalmanCorrection(lambda X, m: None, altitude_gain="no_pitch_rate").update(gated, w, modes, frame)
     assert abs((plain[0] - X[0]) @ w) > 1.0 and abs((gated[0] - X[0]) @ w) < 0.05
     np.testing.assert_allclose(gated[1:], plain[1:])
+
+
+def test_the_within_mode_covariance_pools_each_patterns_spread_about_its_own_mean():
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((LAYOUT.n, 300))
+    modes = np.zeros((LAYOUT.nf, 300), dtype=bool)
+    modes[0, 100:] = True                               # two patterns of 100 and 199 particles ...
+    modes[1, 299] = True                                # ... and one particle alone in its pattern
+    X[:, 100:299] += 7.0                                # the second pattern sits 7 further along
+    X[:, 299] = 50.0
+    w = rng.random(300)
+    w /= w.sum()
+    expected = np.zeros((LAYOUT.n, LAYOUT.n))
+    for g in (slice(0, 100), slice(100, 299)):
+        dX = X[:, g] - (X[:, g] @ w[g] / w[g].sum())[:, None]
+        expected += (dX * w[g]) @ dX.T
+    np.testing.assert_allclose(within_mode_cov(X, w, modes), expected, rtol=1e-10, atol=1e-12)
+    assert np.all(np.diag(weighted_mean_cov(X, w)[1]) > 10.0 * np.diag(expected))
+
+
+def test_a_gain_from_within_each_hypothesis_keeps_a_gnss_frame_from_dragging_the_altitude():
+    """A crowd (80 %) blames the barometer for an altitude 5 m off; the rest are fault-free. With
+    the cloud's covariance the 5 m between them reads as altitude uncertainty, so one GNSS frame 7 m
+    off (one sigma) drags the fault-free particles' altitude off the barometer they match; with
+    parts.gain_covariance = "within_mode" they move as their own Kalman filter would."""
+    layout = FaultLayout(("gnss", "baro"), ("sensor", "sensor"), ("gnss_alt", "baro_alt"),
+                         ("gnss_alt", "baro_alt"))
+    meas = MeasurementModel.build(layout, np.array([7.5, 1.5]))
+    rng = np.random.default_rng(5)
+    n_all = 2000
+    X = np.zeros((layout.n, n_all))
+    X[0] = -500.0 + 0.7 * rng.standard_normal(n_all)   # p_d (m): 500 m up, 0.7 m apart
+    modes = np.zeros((2, n_all), dtype=bool)
+    modes[1, 400:] = True
+    X[0, 400:] += 5.0                                   # 5 m lower, ...
+    X[6, 400:] = 5.0                                    # ... the barometer's fault makes up for it
+    w = np.full(n_all, 1.0 / n_all)
+    frame = Frame.of(1.0, np.array([507.0, 500.0]), np.ones(2, bool), np.zeros(2), meas)
+    moved = {}
+    for cov in ("cloud", "within_mode"):
+        Xc = X.copy()
+        KalmanCorrection(lambda X, m: None, hold_mode0_faults=True, covariance=cov).update(
+            Xc, w, modes, frame)
+        moved[cov] = (X[0, :400] - Xc[0, :400]).mean()  # the fault-free particles' climb (m)
+    assert moved["cloud"] > 0.4
+    assert abs(moved["within_mode"]) < 0.1
+    with pytest.raises(ValueError, match="covariance 'pooled'"):
+        KalmanCorrection(lambda X, m: None, covariance="pooled")
 
 
 # ----------------------------------------------------------------------------- resample, regularise
