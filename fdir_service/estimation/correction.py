@@ -55,15 +55,25 @@ def weighted_cov(X: np.ndarray, w: np.ndarray, mean: np.ndarray) -> np.ndarray:
     return (dX * w) @ dX.T
 
 
-def within_mode_cov(X: np.ndarray, w: np.ndarray, modes: np.ndarray) -> np.ndarray:
-    """Weighted covariance (n, n) of X (n, N) about each particle's mode-pattern mean, pooled over
-    the patterns of modes (nf, N): the spread within a hypothesis, not the distance between
-    hypotheses (a particle alone in its pattern adds nothing)."""
+HYPOTHESIS_SHARE = 0.05
+"""A mode pattern holding at least this share of the weight is a hypothesis of its own for
+`within_mode_cov`; the rest (the step's sentinels, a few stragglers) are spread about the cloud."""
+
+
+def within_mode_cov(X: np.ndarray, w: np.ndarray, modes: np.ndarray,
+                    share_min: float = HYPOTHESIS_SHARE) -> np.ndarray:
+    """Weighted covariance (n, n) of X (n, N), each particle about its mode pattern's mean when
+    that pattern holds >= share_min of the weights w (N,) (modes (nf, N) bool), else about the
+    cloud's mean: the spread within each hypothesis, without the distance between them, while a
+    young hypothesis (this step's sentinels) is still spread about the cloud, so that the data
+    refine its amplitude as with the cloud's covariance."""
     code = mode_codes(modes)
     groups = np.flatnonzero(np.bincount(code))
     member = code == groups[:, None]
     share = member * w
-    means = (share @ X.T) / np.maximum(share.sum(axis=1), 1e-300)[:, None]
+    total = share.sum(axis=1)
+    means = (share @ X.T) / np.maximum(total, 1e-300)[:, None]
+    means[total < share_min] = X @ w
     dX = X - means.T @ member
     return (dX * w) @ dX.T
 

@@ -251,7 +251,9 @@ def test_the_pitch_rate_row_alone_can_be_kept_from_moving_the_altitude():
     np.testing.assert_allclose(gated[1:], plain[1:])
 
 
-def test_the_within_mode_covariance_pools_each_patterns_spread_about_its_own_mean():
+def test_the_within_mode_covariance_pools_each_hypothesis_spread_about_its_own_mean():
+    """Two patterns holding 1/3 and 2/3 of the weight are spread about their own means; a
+    particle alone in its pattern (a sentinel, under HYPOTHESIS_SHARE) about the cloud's."""
     rng = np.random.default_rng(3)
     X = rng.standard_normal((LAYOUT.n, 300))
     modes = np.zeros((LAYOUT.nf, 300), dtype=bool)
@@ -259,14 +261,17 @@ def test_the_within_mode_covariance_pools_each_patterns_spread_about_its_own_mea
     modes[1, 299] = True                                # ... and one particle alone in its pattern
     X[:, 100:299] += 7.0                                # the second pattern sits 7 further along
     X[:, 299] = 50.0
-    w = rng.random(300)
-    w /= w.sum()
+    w = np.full(300, 1.0 / 300)
     expected = np.zeros((LAYOUT.n, LAYOUT.n))
     for g in (slice(0, 100), slice(100, 299)):
         dX = X[:, g] - (X[:, g] @ w[g] / w[g].sum())[:, None]
         expected += (dX * w[g]) @ dX.T
+    lone = X[:, 299] - X @ w
+    expected += w[299] * np.outer(lone, lone)
     np.testing.assert_allclose(within_mode_cov(X, w, modes), expected, rtol=1e-10, atol=1e-12)
-    assert np.all(np.diag(weighted_mean_cov(X, w)[1]) > 10.0 * np.diag(expected))
+    assert np.all(np.diag(weighted_mean_cov(X, w)[1]) > 1.5 * np.diag(expected))
+    alone = expected - w[299] * np.outer(lone, lone)   # with the sentinel a hypothesis of its own
+    np.testing.assert_allclose(within_mode_cov(X, w, modes, share_min=0.0), alone, rtol=1e-10)
 
 
 def test_a_gain_from_within_each_hypothesis_keeps_a_gnss_frame_from_dragging_the_altitude():
