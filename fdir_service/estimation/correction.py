@@ -187,11 +187,11 @@ class KalmanCorrection:
     the altimeters' drift entries then absorbed (docs/robustness.md, run 56 of
     real-turbulence-faultfree, seed 1); the default keeps every row.
     covariance (`GAIN_COVARIANCES`): "within_mode" builds the gain from the spread within each mode
-    pattern. The cloud's covariance also holds the distance between hypotheses: with a crowd that
-    blames the barometer for an altitude 5 m off beside one that does not, the altitude and the
-    barometer's fault entry are anti-correlated across the cloud, the barometer's gain on the
-    altitude is ~0, and the fault-free particles drift off the barometer they should follow
-    (docs/robustness.md, "A gain from within each hypothesis")."""
+    pattern. The cloud's covariance also holds the distance between hypotheses: beside a crowd that
+    blames the barometer for an altitude 5 m off, the barometer's gain on the fault-free particles'
+    altitude was ~0 (the altitude and its fault entry anti-correlated across the cloud) and the
+    GNSS's ten times the one within either hypothesis, so each GNSS frame's noise moved them off
+    the barometer (docs/robustness.md, "A gain from within each hypothesis")."""
 
     def __init__(self, pin, hold_mode0_faults: bool = False, altitude_gain: str = "all_rows",
                  covariance: str = "cloud") -> None:
