@@ -95,7 +95,8 @@ def test_a_drifting_attitude_is_declared_sooner_and_tracked_closer_with_a_drift_
     assert abs(rate - 0.5) < 0.3 * 0.5           # one flight's read is within 0.3-0.8 deg/s
     # the robust monitor's attitude parts (fold_after, theta's pi01 = 0.003, sentinel_clip;
     # aerosonde-drift has them too) brought the bias entry alone from a mean RMSE of 1.67 to
-    # 0.73 deg; the drift entry's is 0.51
+    # 0.73 deg (0.72 with its gain from within each hypothesis); the drift entry's is 0.51
+    # (aerosonde-drift keeps the cloud's gain: with the other, 0.94)
     # (docs/faults.md, "The drift kind")
     assert np.mean([d["rmse"] for d in drift]) < 1.1 * np.mean([b["rmse"] for b in bias])
     assert np.mean([d["delay"] for d in drift]) <= np.mean([b["delay"] for b in bias]) + 0.5
