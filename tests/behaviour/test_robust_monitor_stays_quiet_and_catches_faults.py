@@ -10,6 +10,7 @@ import numpy as np
 
 from sim_bridge import campaign
 from sim_bridge.scenario import load_scenario
+from tests.helpers.experiments import with_parts
 
 EXPERIMENTS = Path(__file__).resolve().parents[2] / "config" / "experiments"
 P_DECLARE, HOLD_FRAMES = 0.9, 4          # the service's declare hysteresis: P >= 0.9 for 0.2 s
@@ -183,13 +184,9 @@ def test_an_attitude_step_is_not_taken_for_a_gyro_fault():
 def _declared_in_calm_faultfree_run_51(clip: float) -> list[str]:
     """The faults declared (service hysteresis, after 5 s) in the first 240 s of run 51 of
     real-calm-faultfree, monitored with parts.sentinel_clip = clip."""
-    import dataclasses
-
     from sim_bridge.yardstick import Hysteresis, declared
 
-    sc = load_scenario("real-calm-faultfree")
-    sc = dataclasses.replace(sc, estimator=dataclasses.replace(
-        sc.estimator, settings=dataclasses.replace(sc.estimator.settings, sentinel_clip=clip)))
+    sc = with_parts(load_scenario("real-calm-faultfree"), sentinel_clip=clip)
     traj = campaign.fly(sc, "RJMRPF", 51, seconds=240.0)
     P = np.array([o.fault_probability for o in traj.outputs])
     return [sc.estimator.faults[j].id for j in range(P.shape[1])
@@ -209,13 +206,9 @@ def _declared_after_a_jsbsim_gyro_fault(seed: int, run_index: int, covariance: s
     """The faults declared (service hysteresis) from the onset of the gyro fault of run
     `run_index` of real-jsbsim (campaign seed `seed`) to 3 s after its end, monitored with
     parts.gain_covariance = covariance."""
-    import dataclasses
-
     from sim_bridge.yardstick import Hysteresis, declared
 
-    sc = load_scenario("real-jsbsim")
-    sc = dataclasses.replace(sc, estimator=dataclasses.replace(
-        sc.estimator, settings=dataclasses.replace(sc.estimator.settings, gain_covariance=covariance)))
+    sc = with_parts(load_scenario("real-jsbsim"), gain_covariance=covariance)
     traj = campaign.fly(sc, "RJMRPF", run_index, seed, seconds=95.0)
     P = np.array([o.fault_probability for o in traj.outputs])
     gyro = np.flatnonzero(np.asarray(traj.active)[:, [f.id for f in sc.faults].index("q")])
