@@ -102,6 +102,10 @@ class FaultSpec:
     amplitude_max: float | None = None
     pi01: float | None = None
     pi10: float | None = None
+    pi_switch: float | None = None
+    """Per step and sibling: this fault's hand-over of its offset to another type of its item
+    (`fault_types.TypeSwitch`), None = parts.pi_switch. A type that nests its siblings (a drift is
+    a bias with rate 0) needs few hand-overs out of it: each one costs it share (docs/faults.md)."""
     drift_sigma: float = 0.0
     """parts.mode0 = "drift": random-walk std (SI per sqrt(s)) of the fault entry in mode 0, the
     sensor's slow fault-free error (a gyro bias walk, a GNSS Gauss-Markov wander)."""
@@ -274,6 +278,11 @@ class EstimatorConfig:
         return (tuple(s.pi01 if f.pi01 is None else f.pi01 for f in self.faults),
                 tuple(s.pi10 if f.pi10 is None else f.pi10 for f in self.faults))
 
+    def switch_rates(self) -> tuple[float, ...]:
+        """Per-fault hand-over probability per step and sibling (nf,): its own, else parts.pi_switch."""
+        s = self.settings.pi_switch
+        return tuple(s if f.pi_switch is None else f.pi_switch for f in self.faults)
+
     @property
     def sensor_faults(self) -> tuple[FaultSpec, ...]:
         return tuple(f for f in self.faults if f.kind == "sensor")
@@ -316,6 +325,7 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         amplitude_max=None if amax is None else amax * UNITS[unit],
         pi01=t.take("pi01", "number", None, check=UNIT_INTERVAL),
         pi10=t.take("pi10", "number", None, check=UNIT_INTERVAL),
+        pi_switch=t.take("pi_switch", "number", None, check=UNIT_INTERVAL),
         drift_sigma=t.take("drift_sigma", "number", 0.0, check=NON_NEGATIVE),
         on_exit=t.take("on_exit", "string", "reset", choices=EXIT_CHOICES),
         fold_after=t.take("fold_after", "string", None, choices=watchable),

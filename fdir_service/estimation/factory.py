@@ -316,7 +316,7 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     evolution = TypedEvolution(layout, meas.H, wind_entry(estimator.faults),
                                estimator.airframe_params().k_motor)
     pairs = sibling_pairs(layout)
-    switch = TypeSwitch(pairs, estimator.settings.pi_switch, evolution, layout.sensor_row) \
+    switch = TypeSwitch(pairs, estimator.switch_rates(), evolution, layout.sensor_row) \
         if pairs.size or evolution.stuck.size else None
     parts.jump.use_types(switch)
     parts.predict = TypedPredict(parts.predict, evolution, layout)

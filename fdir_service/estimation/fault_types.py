@@ -36,6 +36,8 @@ from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import state_gain
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from fdir_service.estimation.base import StepOutput
     from fdir_service.estimation.frame import Frame
 
@@ -249,11 +251,12 @@ def sibling_pairs(layout: FaultLayout) -> np.ndarray:
 
 
 class TypeSwitch:
-    """A mode-1 fault may hand its offset to another type of the same item (parts.pi_switch per
-    step and pair): entry a leaves mode 1 (back to its fault-free value), entry b enters it with
-    a's offset. All additive types read that offset the same way, so the particle's prediction of
-    this frame is unchanged; only the next frames tell a stuck sensor from a biased one. Without
-    it, the type that took the fault first keeps it until sentinels of the other happen to win.
+    """A mode-1 fault may hand its offset to another type of the same item (per step and pair, at
+    entry a's rate: its `pi_switch`, else parts.pi_switch): entry a leaves mode 1 (back to its
+    fault-free value), entry b enters it with a's offset. All additive types read that offset the
+    same way, so the particle's prediction of this frame is unchanged; only the next frames tell a
+    stuck sensor from a biased one. Without it, the type that took the fault first keeps it until
+    sentinels of the other happen to win.
 
     One type per item at a time (`open`): the additive types of an item add the same offset, so a
     particle with two of them in mode 1 could split one fault between them in any proportion.
@@ -267,14 +270,17 @@ class TypeSwitch:
     pitot anchors nothing: the wind it measures against u is what the anchor would move, and nothing
     else sees the wind, so an anchored wind would explain any standing pitot fault away (`pitot.py`).
 
-    pairs (p, 2): `sibling_pairs`; rate: the hand-over probability per step and pair; evolution:
+    pairs (p, 2): `sibling_pairs`; rate: the hand-over probability per step and pair, one for all
+    or per entry (nf,), the pair (a, b) at a's; evolution:
     the `TypedEvolution` (its stuck entries and their rows' h_r); rows (nf,): each entry's row.
     """
 
-    def __init__(self, pairs: np.ndarray, rate: float, evolution: TypedEvolution | None = None,
-                 rows: np.ndarray | None = None) -> None:
+    def __init__(self, pairs: np.ndarray, rate: float | Sequence[float],
+                 evolution: TypedEvolution | None = None, rows: np.ndarray | None = None) -> None:
         self.pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
-        self.rate = float(rate)
+        rate = np.asarray(rate, dtype=float)
+        self.rates = (np.full(len(self.pairs), float(rate)) if rate.ndim == 0
+                      else rate[self.pairs[:, 0]])                                      # (p,)
         self.stuck = evolution.stuck if evolution is not None else np.zeros(0, int)
         self.stuck_rows = np.asarray(rows, dtype=int)[self.stuck] if self.stuck.size else self.stuck
         self.stuck_g = state_gain(evolution.H, self.stuck_rows) if self.stuck.size \
@@ -316,11 +322,11 @@ class TypeSwitch:
               rng: np.random.Generator) -> None:
         """Hand over in place: F (nf, N) fault entries, modes (nf, N); reset_to (nf,) the fault-free
         values (None: 0)."""
-        if not self.pairs.size or self.rate <= 0.0:
+        if not self.pairs.size or not (self.rates > 0.0).any():
             return
         v = rng.random((len(self.pairs), F.shape[1]))
-        for (a, b), vv in zip(self.pairs.tolist(), v, strict=True):
-            go = modes[a] & ~modes[b] & (vv < self.rate)
+        for (a, b), vv, rate in zip(self.pairs.tolist(), v, self.rates.tolist(), strict=True):
+            go = modes[a] & ~modes[b] & (vv < rate)
             if go.any():
                 back = 0.0 if reset_to is None else reset_to[a]
                 F[b, go] += F[a, go] - back        # the row's offset F[a] + F[b] is kept
