@@ -300,3 +300,30 @@ def test_a_heavy_pitch_rate_tail_gives_a_share_of_the_particles_wider_pitch_rate
     assert abs(np.std(dq0) - 0.01) < 0.0005
     assert abs(np.std(dq) - 0.01 * np.sqrt(0.95 + 0.05 * 225)) < 0.003     # the mixture's spread
     assert (np.abs(dq) > 0.05).mean() > 0.03 > (np.abs(dq0) > 0.05).mean()
+
+
+def test_each_entry_hands_over_at_its_own_rate():
+    """Pair (a, b) hands over at a's pi_switch: theta bias -> stuck always, stuck -> bias never."""
+    from fdir_service.estimation.fault_types import TypeSwitch
+
+    pairs = np.array([[0, 1], [1, 0]])
+    part = TypeSwitch(pairs, np.array([1.0, 0.0, 0.5, 0.5, 0.5]))
+    assert part.rates.tolist() == [1.0, 0.0]
+    F = np.zeros((LAYOUT.nf, 4))
+    F[0, :2] = 0.03
+    F[1, 2:] = 0.04
+    modes = np.zeros((LAYOUT.nf, 4), dtype=bool)
+    modes[0, :2] = modes[1, 2:] = True
+    part.apply(F, modes, None, np.random.default_rng(0))
+    assert modes[1].all() and not modes[0].any()               # the bias particles moved, the stuck stayed
+    np.testing.assert_allclose(F[1], [0.03, 0.03, 0.04, 0.04])
+
+
+def test_a_faults_pi_switch_defaults_to_the_filters_and_is_checked():
+    doc, _ = estimator_document("aerosonde-catalogue")
+    est = parse_estimator(doc, "x.toml")
+    rates = dict(zip([f.id for f in est.faults], est.switch_rates(), strict=True))
+    assert rates["th_dr"] == 0.002 and rates["th_st"] == est.settings.pi_switch == 0.01
+    doc["faults"][0]["pi_switch"] = 1.5
+    with pytest.raises(ConfigError, match="pi_switch"):
+        parse_estimator(doc, "x.toml")
