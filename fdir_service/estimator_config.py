@@ -104,8 +104,8 @@ class FaultSpec:
     pi10: float | None = None
     pi_switch: float | None = None
     """Per step and sibling: this fault's hand-over of its offset to another type of its item
-    (`fault_types.TypeSwitch`), None = parts.pi_switch. A type that nests its siblings (a drift is
-    a bias with rate 0) needs few hand-overs out of it: each one costs it share (docs/faults.md)."""
+    (`fault_types.TypeSwitch`), None = parts.pi_switch. Each hand-over out of a fault costs its
+    type share of P(item) (the catalogue's drifts: docs/faults.md, "Hand-overs out of a drift")."""
     drift_sigma: float = 0.0
     """parts.mode0 = "drift": random-walk std (SI per sqrt(s)) of the fault entry in mode 0, the
     sensor's slow fault-free error (a gyro bias walk, a GNSS Gauss-Markov wander)."""
