@@ -281,6 +281,7 @@ class TypeSwitch:
         rate = np.asarray(rate, dtype=float)
         self.rates = (np.full(len(self.pairs), float(rate)) if rate.ndim == 0
                       else rate[self.pairs[:, 0]])                                      # (p,)
+        self.active = bool(self.pairs.size) and bool((self.rates > 0.0).any())
         self.stuck = evolution.stuck if evolution is not None else np.zeros(0, int)
         self.stuck_rows = np.asarray(rows, dtype=int)[self.stuck] if self.stuck.size else self.stuck
         self.stuck_g = state_gain(evolution.H, self.stuck_rows) if self.stuck.size \
@@ -322,7 +323,7 @@ class TypeSwitch:
               rng: np.random.Generator) -> None:
         """Hand over in place: F (nf, N) fault entries, modes (nf, N); reset_to (nf,) the fault-free
         values (None: 0)."""
-        if not self.pairs.size or not (self.rates > 0.0).any():
+        if not self.active:
             return
         v = rng.random((len(self.pairs), F.shape[1]))
         for (a, b), vv, rate in zip(self.pairs.tolist(), v, self.rates.tolist(), strict=True):
