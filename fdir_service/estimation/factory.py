@@ -416,6 +416,9 @@ def build_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator
     filt.rows = RowSplit.of(estimator, kinematic, trim_state(estimator))
     if rec.family == "particle" and rec.has_modes and filt.rows.pitot is not None:
         filt.wind = filt.rows.pitot
+        memory = getattr(filt.parts.jump, "drift", None)
+        if memory is not None:
+            filt.wind.use_memory(memory)
         process = filt.parts.predict.process
         if isinstance(process, KinematicProcess):
             process.use_wind(filt.wind)
