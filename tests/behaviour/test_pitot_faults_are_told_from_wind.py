@@ -106,3 +106,19 @@ def test_a_pitot_blocked_in_the_climb_is_declared_blocked_in_the_climb_and_the_e
     later = on & (tr.t > first + 2.0)
     assert np.median(dec["P:pit_blk"][later]) > 0.5                  # held as a blockage
     assert not dec["delta_e"][on].any()
+
+
+
+def test_a_pitot_bias_that_ends_in_the_climb_is_not_declared_again(windy_climb):
+    """A -4 m/s pitot bias from 5 s to 35 s, ending in the climb: under the airspeed hold the head
+    wind takes the ground speed's change while the pitot is faulty, so the healthy pitot that
+    returns fits the wind the cloud kept moving. While the exits returned to the wind of the onset
+    (before commit 8755367) the returning pitot was declared again at 39 s in this flight (and for
+    20 s in run 4 of real-pitot, after a 2 m/s change of the ground speed)."""
+    sc, tr, y, mask = windy_climb
+    on = (tr.t >= 5.0) & (tr.t < 35.0)
+    y = y.copy()
+    y[on, airspeed_row(sc)] -= 4.0
+    dec = item_declared(sc, tr, y, mask)
+    assert dec["airspeed"][on & (tr.t > 6.0)].mean() > 0.95
+    assert not dec["airspeed"][tr.t >= 37.0].any()

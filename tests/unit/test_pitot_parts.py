@@ -16,6 +16,7 @@ from fdir_service.estimation.factory import build_filter
 from fdir_service.estimation.fault_types import TypedEvolution, TypeSwitch, sibling_pairs
 from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.inputs import G
+from fdir_service.estimation.jump import DriftMemory
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.pitot import HOLD_SETTLE_S, PitotRow, gust_sigma, pitot_row, wind_entry
@@ -122,6 +123,37 @@ def test_under_an_airspeed_hold_the_wind_takes_the_ground_speeds_change_and_a_he
     np.testing.assert_allclose(MEAS.predict(X)[1], before)                # healthy: the airspeed held
     np.testing.assert_allclose(X[N_AIRFRAME + BLK, 1], 1.0)               # blocked: held, wind moves anyway
     assert part.hold == 1.0 and load_estimator("aerosonde-catalogue").settings.wind_hold == 1.0
+
+
+def test_under_a_pitot_fault_the_winds_fault_free_value_takes_the_ground_speeds_change():
+    """Exits return to the drift memory's value (parts.mode0 = "drift"); while a pitot fault holds
+    every particle no reading sees the wind, and under the hold it must still take the ground
+    speed's change (and its gust return to the mean), not stay at the fault's onset."""
+    part = PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, dt=0.05,
+                    gust=(0.0, 10.0, 60.0), hold=1.0)
+    part.mean = 40.0
+    memory = DriftMemory(LAYOUT.nf)
+    memory.value[WIND] = 8.0                         # the head wind at the onset: u + W = 40
+    part.use_memory(memory)
+    X = cloud(4)
+    modes = np.zeros((LAYOUT.nf, 4), dtype=bool)
+    modes[WIND] = True                               # every particle holds the pitot biased
+    X[N_AIRFRAME + WIND] = 3.0                       # the wind plus a -5 m/s offset
+    u_before = X[1].copy()
+    X[1] -= 2.0                                      # climbing into the wind: 2 m/s less over the ground
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), np.random.default_rng(3), u_before)
+    np.testing.assert_allclose(X[N_AIRFRAME + WIND], 3.0)      # mode 1: the entry is the reading's
+    np.testing.assert_allclose(memory.value, [10.0, 0.0, 0.0])  # the wind a healthy pitot returns to
+    memory.value[WIND] = 9.0                         # 1 m/s of gust above the held airspeed ...
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), np.random.default_rng(3))
+    a = np.exp(-0.05 / 10.0)
+    np.testing.assert_allclose(memory.value[WIND], 40.0 + a * (9.0 + 30.0 - 40.0) - 30.0)   # ... returns
+
+
+def test_the_catalogue_filters_wind_memory_is_the_jumps():
+    est = load_estimator("aerosonde-catalogue")
+    filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=50)
+    assert filt.wind.memory is filt.parts.jump.drift
 
 
 def test_at_full_throttle_the_hold_lets_go_and_takes_the_airspeed_it_finds_when_it_holds_again():
