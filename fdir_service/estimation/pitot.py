@@ -33,6 +33,9 @@ entry is the wind plus the pitot's offset. `PitotRow` is the wind's model and th
   and the wind's own gust (`free_sigma`, `wind_gust_sigma`), and M is re-expressed as the mean of
   the new c (the head wind, then the airspeed again when the hold takes over), so the airspeed the
   hold returns to is the one the aircraft has, not the one it had before it lost its engine;
+- `use_memory`: the fault-free value an exit returns the wind's entry to (`jump.DriftMemory`)
+  moves with the gust model while a pitot fault holds the entry, so a pitot that returns fits the
+  wind of now, not of the fault's onset;
 - `follow` / `trusted`: the pitching moment and the thrust check take the airspeed less the pitot's
   estimated fault, so a blocked pitot does not make the elevator or the engine look faulty.
 """
