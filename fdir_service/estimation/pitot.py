@@ -156,7 +156,7 @@ class PitotRow:
         c = self._held_sum(W, u0, kappa)
         sigma = self.step_sigma if kappa == self.hold else self.free_step_sigma
         c_next = self.mean + self.a * (c - self.mean) + sigma * rng.standard_normal(W.size)
-        step = (c_next - kappa * X[1] if kappa > 0.0 else c_next) - W     # W+ = c+ - kappa u+
+        step = self._wind_of(c_next, X[1], kappa) - W
         step *= free
         W += step
         X[N_AIRFRAME + self.held] -= step * modes[self.held]
@@ -173,8 +173,8 @@ class PitotRow:
         healthy pitot was declared again, biased by that change, for 20 s after the fault ended."""
         if self.memory is None:
             return
-        c = self.memory.value[self.wind] + kappa * u0
-        self.memory.value[self.wind] = self.mean + self.a * (c - self.mean) - kappa * u1
+        c = self._held_sum(self.memory.value[self.wind], u0, kappa)
+        self.memory.value[self.wind] = self._wind_of(self.mean + self.a * (c - self.mean), u1, kappa)
 
     def _kappa(self, W: np.ndarray, u: np.ndarray, fault_free: np.ndarray) -> float:
         """This step's kappa: `hold`, or 0 while the throttle has no authority (`command`); when it
@@ -193,6 +193,11 @@ class PitotRow:
         """c = W + kappa u (m/s, (N,)): the quantity whose gusts return to the mean M, the head wind
         (kappa = 0) or, under an airspeed hold (kappa = 1), the airspeed u + W."""
         return W + kappa * u if kappa > 0.0 else W
+
+    @staticmethod
+    def _wind_of(c, u, kappa: float):
+        """W = c - kappa u (m/s): the head wind of a held sum c at ground speed u (`_held_sum`'s inverse)."""
+        return c - kappa * u if kappa > 0.0 else c
 
     def _start(self, X: np.ndarray, y: np.ndarray, mask: np.ndarray, rng: np.random.Generator) -> None:
         """On the first frame whose pitot arrived: X[wind] = y_pitot - u + N(0, sigma^2) per particle."""
