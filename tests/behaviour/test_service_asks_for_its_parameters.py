@@ -17,7 +17,7 @@ import pytest
 
 from fdir_service.recording.logtools import McapLog
 from tests.e2e.test_sim_ardupilot_profile_into_service import SCENARIO, command_errors, frames_of
-from tests.helpers.loopback import fly_into_service
+from tests.helpers.loopback import ROBUST_SPEED, fly_into_service
 
 MOVED_ELEVATOR = ("SERVO2_FUNCTION=4", "SERVO5_FUNCTION=19", "SERVO5_REVERSED=1")
 HALF_US_RAD = 0.5 * math.radians(25.0) / 400 + 1e-6
@@ -31,8 +31,8 @@ def flight(tmp_path_factory):
     log, truth = tmp / "flight.mcap", tmp / "truth.mcap"
     params = [a for p in MOVED_ELEVATOR for a in ("--param", p)]
     f = fly_into_service(["--autopilot", "auto", "--record", str(log)],
-                         [SCENARIO, "--profile", "ardupilot", *params, "--speed", "20", "--nav", "truth",
-                          "--duration", "20", "--record", str(truth), "--wait", "60"])
+                         [SCENARIO, "--profile", "ardupilot", *params, "--speed", ROBUST_SPEED,
+                          "--nav", "truth", "--duration", "20", "--record", str(truth), "--wait", "60"])
     assert f.service_rc == 0 and f.sim_rc == 0, f.service_err + f.sim_err
     return log, truth, f.service_err
 

@@ -5,17 +5,15 @@ as a typed STATUSTEXT ("FDIR dt engine out, thrust 2% ...") and a typed FDIR_EST
 from __future__ import annotations
 
 from fdir_service.mavlink import dialect, unpack_fault_types
-from tests.helpers.loopback import fly_into_service
+from tests.helpers.loopback import CATALOGUE_SPEED, fly_into_service
 
 SECONDS = 45.0      # real-engine: the engine quits between 20 and 40 s
-SPEED = "5"         # x real time: at 20x the catalogue's ~2 ms step is 400 frames/s, more than a busy
-                    # core gives
 
 
 def test_an_engine_loss_is_announced_in_words_and_typed_on_the_estimate():
     f = fly_into_service(["--autopilot", "auto", "--estimator", "aerosonde-catalogue"],
-                         ["real-engine", "--profile", "ardupilot", "--speed", SPEED, "--nav", "truth",
-                          "--duration", str(SECONDS), "--wait", "60"])
+                         ["real-engine", "--profile", "ardupilot", "--speed", CATALOGUE_SPEED,
+                          "--nav", "truth", "--duration", str(SECONDS), "--wait", "60"])
     assert f.service_rc == 0 and "aerosonde-catalogue" in f.service_err, f.service_err
     texts = [txt for _, _, txt in f.gs.statustexts if txt.startswith("FDIR dt ")]
     assert any(txt.startswith("FDIR dt engine out, thrust ") for txt in texts), f.gs.statustexts

@@ -11,14 +11,15 @@ from pathlib import Path
 
 from fdir_service.airframe.params import load_airframe
 from sim_bridge.demo import GroundStation
-from tests.helpers.loopback import ROOT, fly_into_service
+from tests.helpers.loopback import ROBUST_SPEED, ROOT, fly_into_service
 
 
 def fly(tmp_path: Path, scenario: str, duration: float) -> tuple[GroundStation, Path]:
-    """`sim-bridge fly` at 20x real time, the default `fdir run` recording; the ground station's view."""
+    """`sim-bridge fly` at ROBUST_SPEED x real time, the default `fdir run` recording; the ground
+    station's view."""
     log = tmp_path / f"{scenario}.mcap"
     f = fly_into_service(["--record", str(log)],
-                         [scenario, "--speed", "20", "--nav", "truth", "--duration", str(duration),
+                         [scenario, "--speed", ROBUST_SPEED, "--nav", "truth", "--duration", str(duration),
                           "--wait", "60"])
     assert f.service_rc == 0 and "aerosonde-robust" in f.service_err, f.service_err
     assert f.sim_rc == 0, f.sim_err

@@ -26,7 +26,7 @@ from fdir_service.runtime.derived import param_number
 from fdir_service.service_config import load_service_config
 from sim_bridge.mavlink_bridge import AutopilotLink
 from sim_bridge.scenario import load_scenario
-from tests.helpers.loopback import ROOT, fly_into_service
+from tests.helpers.loopback import ROBUST_SPEED, ROOT, fly_into_service
 from tests.helpers.service import fake_factory
 
 SCENARIO = "real-calm-faultfree"
@@ -46,7 +46,7 @@ def flight(request, tmp_path_factory):
     tmp = tmp_path_factory.mktemp(f"sim{profile}")
     log, truth = tmp / "flight.mcap", tmp / "truth.mcap"
     f = fly_into_service(["--autopilot", "auto", "--record", str(log)],
-                         [SCENARIO, "--profile", profile, "--speed", "20", "--nav", "truth",
+                         [SCENARIO, "--profile", profile, "--speed", ROBUST_SPEED, "--nav", "truth",
                           "--duration", str(SECONDS), "--record", str(truth), "--wait", "60"])
     assert f.service_rc == 0 and "aerosonde-robust" in f.service_err, f.service_err
     assert f.sim_rc == 0 and f"profile {profile}" in f.sim_err, f.sim_err

@@ -14,6 +14,16 @@ from pathlib import Path
 from sim_bridge.demo import GroundStation, free_udp_port
 
 ROOT = Path(__file__).resolve().parents[2]
+ROBUST_SPEED = "5"
+"""`sim-bridge fly --speed` (x real time) beside the robust monitor: 100 frames/s against its ~2 ms
+step at N = 1000, with room for a test on the other worker (`make test` runs two). At 20x (400
+frames/s) a busy CI core fell behind, its UDP buffer overflowed and frames lost rows."""
+CATALOGUE_SPEED = "3"
+"""... and beside the catalogue (aerosonde-catalogue, ~4 ms a step under load): at 5x, beside the
+other worker's test, it lost a quarter of the messages and a barometer that missed frames was
+called stuck."""
+SINGLE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+"""One BLAS thread for the service and the simulator: at most one core each beside a test."""
 
 
 @dataclass
@@ -33,7 +43,7 @@ def fly_into_service(service_args: list[str], sim_args: list[str], tail_s: float
     simulator ends and tail_s (s) more, then stop the service with SIGINT."""
     p_ap, p_gcs = free_udp_port(), free_udp_port()
     gs = GroundStation(p_gcs)
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    env = dict(os.environ, PYTHONUNBUFFERED="1", **SINGLE_THREAD)
     service = subprocess.Popen(
         [sys.executable, "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
          "--gcs", f"udpout:127.0.0.1:{p_gcs}", *service_args],
