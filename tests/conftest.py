@@ -18,18 +18,12 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     threadpool_limits(1)
 
 
-@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Mark every test with its kind (its folder): `pytest -m unit`, `-m "not e2e"` ...; the
-    end-to-end ones and those that fly a simulator beside the service in real time (x its --speed)
-    share one xdist group, so one worker runs them one at a time and they never have to share the
-    cores with each other."""
+    """Mark every test with its kind (its folder): `pytest -m unit`, `-m "not e2e"` ..."""
     for item in items:
         kind = item.path.parent.name
         if kind in ("unit", "behaviour", "e2e"):
             item.add_marker(getattr(pytest.mark, kind))
-        if kind == "e2e" or hasattr(item.module, "fly_into_service"):
-            item.add_marker(pytest.mark.xdist_group("realtime"))
 
 
 @pytest.fixture(scope="session")

@@ -3,11 +3,15 @@ end-to-end tests' shared harness."""
 
 from __future__ import annotations
 
+import fcntl
 import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +28,19 @@ other worker's test, it lost a quarter of the messages and a barometer that miss
 called stuck."""
 SINGLE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 """One BLAS thread for the service and the simulator: at most one core each beside a test."""
+FLIGHT_LOCK = Path(tempfile.gettempdir()) / "fdir-service-loopback-flight.lock"
+"""Held through each flight: `make test`'s two workers never fly two of them at once."""
+
+
+@contextmanager
+def one_flight_at_a_time() -> Iterator[None]:
+    """An exclusive lock on FLIGHT_LOCK (blocks while another process holds it)."""
+    with open(FLIGHT_LOCK, "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 @dataclass
@@ -40,7 +57,13 @@ class Flight:
 def fly_into_service(service_args: list[str], sim_args: list[str], tail_s: float = 1.0) -> Flight:
     """Run `fdir run --master udpin:... --gcs udpout:... SERVICE_ARGS` and `sim-bridge fly SIM_ARGS
     --to udpout:...` (SIM_ARGS start with the scenario), listen as the ground station until the
-    simulator ends and tail_s (s) more, then stop the service with SIGINT."""
+    simulator ends and tail_s (s) more, then stop the service with SIGINT. One flight at a time
+    across processes (`one_flight_at_a_time`)."""
+    with one_flight_at_a_time():
+        return _fly(service_args, sim_args, tail_s)
+
+
+def _fly(service_args: list[str], sim_args: list[str], tail_s: float) -> Flight:
     p_ap, p_gcs = free_udp_port(), free_udp_port()
     gs = GroundStation(p_gcs)
     env = dict(os.environ, PYTHONUNBUFFERED="1", **SINGLE_THREAD)
