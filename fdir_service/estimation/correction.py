@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.linalg.lapack import dpotrf, dtrtri
 
-from fdir_service.estimation.regularize import mode_codes
+from fdir_service.estimation.regularize import mode_codes, pattern_index
 
 if TYPE_CHECKING:
     from fdir_service.estimation.frame import Frame
@@ -68,13 +68,12 @@ def within_mode_cov(X: np.ndarray, w: np.ndarray, modes: np.ndarray,
     young hypothesis (this step's sentinels) is still spread about the cloud, so that the data
     refine its amplitude as with the cloud's covariance."""
     code = mode_codes(modes)
-    groups = np.flatnonzero(np.bincount(code))
-    member = code == groups[:, None]
-    share = member * w
+    groups, inv = pattern_index(code, modes.shape[0])
+    share = (code == groups[:, None]) * w
     total = share.sum(axis=1)
     means = (share @ X.T) / np.maximum(total, 1e-300)[:, None]
     means[total < share_min] = X @ w
-    dX = X - means.T @ member
+    dX = X - means.T[:, inv]
     return (dX * w) @ dX.T
 
 

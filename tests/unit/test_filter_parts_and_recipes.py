@@ -19,7 +19,13 @@ from fdir_service.estimation.layout import FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.predict import GaussianPredict, ModeGatedPredict
 from fdir_service.estimation.recipes import FILTER_NAMES, PARTICLE_FILTERS, RECIPES, recipe
-from fdir_service.estimation.regularize import GlobalJitter, NoJitter, PerModeJitter, mode_codes
+from fdir_service.estimation.regularize import (
+    GlobalJitter,
+    NoJitter,
+    PerModeJitter,
+    mode_codes,
+    pattern_index,
+)
 from fdir_service.estimation.resample import BelowEffectiveSize, EveryStep
 from fdir_service.estimation.sentinels import PriorSentinels, ThesisSentinels, prior_log_constants
 from fdir_service.estimator_config import load_estimator
@@ -328,6 +334,25 @@ def test_mode_codes_set_bit_j_for_fault_j(nf):
     modes = np.random.default_rng(nf).random((nf, 500)) < 0.5
     expected = sum(modes[j].astype(np.int64) << j for j in range(nf))
     np.testing.assert_array_equal(mode_codes(modes), expected)
+
+
+@pytest.mark.parametrize("nf", [3, 16, 19, 40])
+def test_pattern_index_lists_the_patterns_present_and_each_particles_place_among_them(nf):
+    """The same groups and indices by a bincount (nf <= 16) or a sort (beyond, where a bincount
+    would span 2^nf codes), and within_mode_cov the same bits as with its one-hot product."""
+    rng = np.random.default_rng(nf)
+    modes = np.zeros((nf, 500), dtype=bool)
+    modes[rng.integers(0, nf, 60), rng.integers(0, 500, 60)] = True
+    code = mode_codes(modes)
+    groups, inv = pattern_index(code, nf)
+    np.testing.assert_array_equal(groups, np.unique(code))
+    np.testing.assert_array_equal(groups[inv], code)
+    X, w = rng.standard_normal((7, 500)), rng.random(500) / 500
+    member = code == groups[:, None]
+    means = ((member * w) @ X.T) / (member * w).sum(axis=1)[:, None]
+    means[(member * w).sum(axis=1) < 0.05] = X @ w
+    dX = X - means.T @ member
+    assert np.array_equal(within_mode_cov(X, w, modes), (dX * w) @ dX.T)
 
 
 def test_per_mode_jitter_leaves_mode0_fault_entries_exactly_zero():
