@@ -4,18 +4,16 @@
 
 from __future__ import annotations
 
-import os
-
 import pytest
 from threadpoolctl import threadpool_limits
 
 from fdir_service.airframe import load_airframe
 from fdir_service.estimator_config import load_estimator
 
-if os.environ.get("PYTEST_XDIST_WORKER"):
-    # `make test` runs two workers (pytest-xdist) on CI's two cores: one BLAS thread each, or
-    # OpenBLAS's threads oversubscribe the cores and the run is no faster than one worker
-    threadpool_limits(1)
+# One BLAS thread, as every `fdir` / `sim-bridge` command (`cliutil.run`) and campaign worker: the
+# tests fly the service's floating-point path, and `make test`'s two pytest-xdist workers do not
+# oversubscribe CI's two cores (two threads each ran no faster than one worker)
+threadpool_limits(limits=1, user_api="blas")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -112,12 +112,13 @@ def test_a_stuck_attitude_sensor_is_named_stuck_after_at_most_a_short_drift(clim
     """A young stuck reading is also a young ramp or an offset: the service says "type unclear"
     until a type holds 0.8 of P(theta). The held value is not learnt from the readings (its
     sentinel's draw, `fault_types.TypedCorrection`) while a drift's level is, so with the sensor's
-    noise kept a drift may take the first second: named first in 6 of these 8 filters with two
-    BLAS threads (a plain `pytest`), in 2 of 8 with one (`make test`'s workers), then "stuck (was
-    drift)" 0.6-1.7 s later; the floating point's last bits send the clouds apart. Letting the
-    correction move the held value named stuck first in 5 of 7, but raised stuck false alarms
-    before the climb. What holds on both: declared within 3.5 s, stuck named within 5 s (median
-    2.2-2.4 s), nothing but a drift named before it and for under 2 s, and nothing after it."""
+    noise kept a drift may take the first second. On an AMD EPYC (AVX2) it was named first in 6 of
+    these 8 filters with two BLAS threads and in 2 of 8 with one (as the tests and every command
+    run now: `tests/conftest.py`), then "stuck (was drift)" 0.6-1.7 s later: the floating point's
+    last bits send the clouds apart. Letting the correction move the held value named stuck first
+    in 5 of 7, but raised stuck false alarms before the climb. What holds on both paths: declared
+    within 3.5 s, stuck named within 5 s (median 2.2-2.4 s), nothing but a drift named before it
+    and for under 2 s, and nothing after it."""
     sc, tr, y, mask = climb
     y = stuck_attitude(sc, tr, y)
     named_s = []
@@ -166,8 +167,9 @@ def test_an_attitude_ramp_is_named_a_drift_and_nothing_else(climb):
     another type; it is named a drift within 10 s in at least 6 of the 8. With the drift handing over
     to the bias and the stuck entries at 0.01 a step, as often as they hand over to it, the pair kept
     about half of P(theta) and the drift was named on 3 of these 8 (docs/faults.md, "Hand-overs out
-    of a drift"). Now 7 of 8 within 8 s on the machine CI ran on to stop 37, and 6 of 8 within 8 s,
-    7 within 10 s on an AMD EPYC (AVX2); the rest stay "type unclear"."""
+    of a drift"). Now 7 of 8 within 8 s on the machine CI ran on to stop 37; on an AMD EPYC (AVX2)
+    6 of 8 within 8 s and 7 within 10 s with two BLAS threads, 7 of 8 within 8 s with one; the rest
+    stay "type unclear"."""
     sc, tr, y, mask = climb
     j = sc.estimator.measurements.index("theta")
     on = during(tr.t)
