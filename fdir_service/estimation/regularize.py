@@ -125,7 +125,7 @@ def mode_codes(modes: np.ndarray) -> np.ndarray:
 def pattern_index(code: np.ndarray, nf: int) -> tuple[np.ndarray, np.ndarray]:
     """(groups (g,) the mode patterns present in code (N,), ascending; inv (N,) each particle's
     index into groups). A bincount for nf <= 16; a sort beyond, where a bincount would span 2^nf
-    codes (the catalogue's 19 entries: 2^18 and more each step, ~10 ms)."""
+    codes (the catalogue's 19 entries: 2^18 and more each step, 1-2 ms of it)."""
     if nf > 16:
         return np.unique(code, return_inverse=True)
     counts = np.bincount(code)
