@@ -137,12 +137,8 @@ def pattern_index(code: np.ndarray, nf: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _patterns(code: np.ndarray, nf: int) -> tuple[list[int], list[int]]:
     """The mode patterns present in code (N,), ascending, and their particle counts."""
-    if nf <= 16:
-        counts = np.bincount(code)
-        groups = np.flatnonzero(counts).tolist()
-        return groups, counts[groups].tolist()
-    groups, counts = np.unique(code, return_counts=True)
-    return groups.tolist(), counts.tolist()
+    groups, inv = pattern_index(code, nf)
+    return groups.tolist(), np.bincount(inv, minlength=groups.size).tolist()
 
 
 POO_CONDITION_MAX = 1e10

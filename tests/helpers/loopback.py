@@ -26,8 +26,6 @@ CATALOGUE_SPEED = "3"
 """... and beside the catalogue (aerosonde-catalogue, ~4 ms a step under load): at 5x, beside the
 other worker's test, it lost a quarter of the messages and a barometer that missed frames was
 called stuck."""
-SINGLE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-"""One BLAS thread for the service and the simulator: at most one core each beside a test."""
 FLIGHT_LOCK = Path(tempfile.gettempdir()) / "fdir-service-loopback-flight.lock"
 """Held through each flight: `make test`'s two workers never fly two of them at once."""
 
@@ -58,7 +56,7 @@ def fly_into_service(service_args: list[str], sim_args: list[str], tail_s: float
     """Run `fdir run --master udpin:... --gcs udpout:... SERVICE_ARGS` and `sim-bridge fly SIM_ARGS
     --to udpout:...` (SIM_ARGS start with the scenario), listen as the ground station until the
     simulator ends and tail_s (s) more, then stop the service with SIGINT. One flight at a time
-    across processes (`one_flight_at_a_time`)."""
+    across processes (`one_flight_at_a_time`); both programs run on one BLAS thread (`cliutil.run`)."""
     with one_flight_at_a_time():
         return _fly(service_args, sim_args, tail_s)
 
@@ -66,7 +64,7 @@ def fly_into_service(service_args: list[str], sim_args: list[str], tail_s: float
 def _fly(service_args: list[str], sim_args: list[str], tail_s: float) -> Flight:
     p_ap, p_gcs = free_udp_port(), free_udp_port()
     gs = GroundStation(p_gcs)
-    env = dict(os.environ, PYTHONUNBUFFERED="1", **SINGLE_THREAD)
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
     service = subprocess.Popen(
         [sys.executable, "-m", "fdir_service.cli", "run", "--master", f"udpin:127.0.0.1:{p_ap}",
          "--gcs", f"udpout:127.0.0.1:{p_gcs}", *service_args],
