@@ -190,6 +190,8 @@ class FilterSettings:
     adaptive_transition: str = "proposal"  # "thesis" (eq. 6.1) | "proposal" (importance-weighted)
     actuator_sentinel: str = "consistent"  # "thesis" | "consistent" (B_a dF moves the state)
     rate_sentinel: str = "row"           # gyro fault amplitude: "row" (eq. 4.16) | "window" (theta slope)
+    held_value: str = "sentinel"         # a stuck reading's held value: "sentinel" (its draw) | "mean"
+    #                                      (the mean of its readings since it stuck; held_mean.py)
     rate_window_s: float = 1.0           # the window of rate_sentinel = "window" (s)
     thrust_sigma: float = 0.01           # noise of the derived throttle row (0..1 throttle scale)
     q_tail: tuple[float, ...] = (0.0, 1.0)  # (share, scale): heavy-tailed pitch-rate process noise
@@ -441,6 +443,7 @@ _CHOICES = {
     "mode0": ("forced_zero", "reset_on_exit", "drift"), "sentinel_weighting": ("thesis", "prior"),
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
+    "held_value": ("sentinel", "mean"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""

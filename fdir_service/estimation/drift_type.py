@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from fdir_service.estimation.jump import JumpWrapper
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import state_gain
 
@@ -139,7 +140,7 @@ class DriftAnchor:
         X[:N_AIRFRAME] += self.G @ np.where(go, dist, 0.0)
 
 
-class DriftJump:
+class DriftJump(JumpWrapper):
     """A jump part (`jump.MarkovJump`) plus the per-particle rates of the drift entries (module
     docstring). Every attribute it does not define is the inner jump's (`sentinels`,
     `last_amplitude`, `transition`, ...).
@@ -150,7 +151,7 @@ class DriftJump:
 
     def __init__(self, inner, faults: np.ndarray, dt: float, rate_sigma: np.ndarray, N: int,
                  window: OffsetSlope | None = None, anchor: DriftAnchor | None = None) -> None:
-        self.inner = inner
+        super().__init__(inner)
         self.anchor = anchor
         self.window = window
         """None: a new rate is offset / T (module docstring); else N(slope, se^2) of the window."""
@@ -161,11 +162,6 @@ class DriftJump:
         """(k, N) each drift entry's rate per particle (SI / s); 0 in mode 0."""
         self.rate_if_faulty = np.zeros(self.faults.size)
         """(k,) the weighted mean rate over each entry's mode-1 particles (0 where none is)."""
-
-    def __getattr__(self, name: str):
-        if name == "inner":                     # not set yet (copy, pickle): no recursion
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
     def jump(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray, frame: Frame,
              rng: np.random.Generator) -> np.ndarray | None:

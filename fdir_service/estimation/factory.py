@@ -35,6 +35,7 @@ from fdir_service.estimation.fault_types import (
     sibling_pairs,
 )
 from fdir_service.estimation.gating import GatedKF, frozen_fault_scenario
+from fdir_service.estimation.held_mean import HeldCount, HeldMeanCorrection
 from fdir_service.estimation.imm import IMMKalman
 from fdir_service.estimation.inputs import RowSplit
 from fdir_service.estimation.jump import (
@@ -323,11 +324,29 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     noisy = evolution.noisy
     rows = np.maximum(layout.sensor_row, layout.noisy_row)
     parts.correction = TypedCorrection(parts.correction, evolution, rows, meas.sigma)
+    if estimator.settings.held_value == "mean":
+        _held_mean(parts, evolution, layout, N)
     if noisy.size:
         high = np.array([estimator.faults[j].amplitude_max or 9.0 for j in noisy.tolist()])
         parts.sentinel_weighting = NoisySentinels(parts.sentinel_weighting, noisy,
                                                   np.minimum(0.5, high), high)
     return _drift(parts, estimator, layout, meas, N)
+
+
+def _row_siblings(layout: FaultLayout, entries: np.ndarray) -> np.ndarray:
+    """(k, nf) bool: the other fault entries on each of `entries`' (k,) measurement rows."""
+    rows = layout.sensor_row[entries]
+    return (layout.sensor_row[None, :] == rows[:, None]) & (np.arange(layout.nf) != entries[:, None])
+
+
+def _held_mean(parts: Parts, evolution: TypedEvolution, layout: FaultLayout, N: int) -> None:
+    """The held stuck entries' readings learnt as their readings' mean (`held_mean`), in place."""
+    held = evolution.stuck[~evolution.blocked]
+    if not held.size:
+        return
+    rows = layout.sensor_row[held]
+    parts.jump = HeldCount(parts.jump, held, N)
+    parts.correction = HeldMeanCorrection(parts.correction, parts.jump, rows, _row_siblings(layout, held))
 
 
 def _drift(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: MeasurementModel,
@@ -339,9 +358,8 @@ def _drift(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     sigma = np.array([estimator.faults[j].rate_sigma for j in drift.tolist()])
     rows = layout.sensor_row[drift]
     window = OffsetSlope(rows, meas.H, int(round(DRIFT_WINDOW_S / estimator.dt_s)))
-    siblings = (layout.sensor_row[None, :] == rows[:, None]) & (np.arange(layout.nf) != drift[:, None])
     parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window,
-                           DriftAnchor(rows, meas.H, siblings))
+                           DriftAnchor(rows, meas.H, _row_siblings(layout, drift)))
     parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])
     return parts
 

@@ -303,6 +303,19 @@ class FaintExit:
         return np.where(np.abs(dev) < self.threshold, np.maximum(pi10, self.rate)[:, None], pi10[:, None])
 
 
+class JumpWrapper:
+    """A jump part around another, `inner`: every attribute it does not define is the inner's
+    (`drift_type.DriftJump`, `held_mean.HeldCount`)."""
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+
+    def __getattr__(self, name: str):
+        if name == "inner":                     # not set yet (copy, pickle): no recursion
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+
 class NoJump:
     """Filters without modes (RPF, RRPF, bootstrap): P(fault j) = weight of |f_j| > threshold_j.
 

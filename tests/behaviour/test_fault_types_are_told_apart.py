@@ -110,18 +110,19 @@ def service_texts(sc, tr, y, mask, outs, p_type: float) -> list[tuple[float, str
 
 def test_a_stuck_attitude_sensor_is_named_stuck_after_at_most_a_short_drift(climb):
     """A young stuck reading is also a young ramp or an offset: the service says "type unclear"
-    until a type holds 0.8 of P(theta). The held value is not learnt from the readings (its
-    sentinel's draw, `fault_types.TypedCorrection`) while a drift's level is, so with the sensor's
-    noise kept a drift may take the first second. On an AMD EPYC (AVX2) it was named first in 6 of
-    these 8 filters with two BLAS threads and in 2 of 8 with one (as the tests and every command
-    run now: `tests/conftest.py`), then "stuck (was drift)" 0.6-1.7 s later: the floating point's
-    last bits send the clouds apart. Letting the correction move the held value named stuck first
-    in 5 of 7, but raised stuck false alarms before the climb. What holds on both paths: declared
-    within 3.5 s, stuck named within 5 s (median 2.2-2.4 s), nothing but a drift named before it
-    and for under 2 s, and nothing after it."""
+    until a type holds 0.8 of P(theta). The held value was once its sentinel's draw from one noisy
+    reading while a drift's level is corrected, so a drift often took the first second (named first
+    in 2 of these 8 filters on one BLAS thread, 6 of 7 on two, on an AMD EPYC with AVX2: the floating
+    point's last bits send the clouds apart). Since parts.held_value = "mean" (`held_mean.py`) the
+    held value is the mean of the readings since the sensor stuck: a drift was named first in none
+    of the 8 on either path, stuck first in 3 (one thread) and 5 (two), the rest "type unclear"
+    first; stuck named 1.2-2.4 s after the onset (median 1.9 s on one thread, 1.4 s on two).
+    Asserted with room for other paths: declared within 3.5 s, stuck named within 5 s (median
+    under 3 s), a drift named first in at most 1 of 8 and then for under 2 s, nothing but stuck
+    after it."""
     sc, tr, y, mask = climb
     y = stuck_attitude(sc, tr, y)
-    named_s = []
+    named_s, drift_first = [], 0
     for seed in range(1, 9):
         texts = [(t, s) for t, s in service_texts(sc, tr, y, mask, outputs(sc, tr, y, mask, seed), 0.8)
                  if s.startswith("FDIR theta ") and t > ONSET_S]
@@ -135,7 +136,9 @@ def test_a_stuck_attitude_sensor_is_named_stuck_after_at_most_a_short_drift(clim
         after = [s for t, s in texts if t > named[0]]
         assert all(s.startswith(("FDIR theta stuck", "FDIR theta cleared")) for s in after), (seed, texts)
         named_s.append(named[0] - ONSET_S)
+        drift_first += texts[0][1].startswith("FDIR theta drift")
     assert np.median(named_s) < 3.0, np.round(named_s, 2)
+    assert drift_first <= 1
 
 
 def test_a_barometer_whose_noise_triples_is_declared_noisy_with_its_k(climb):
