@@ -18,12 +18,13 @@ hypothesis weighed by the wider predictive of a constant learnt from n readings,
 first in 3 against 0; docs/faults.md).
 
 While a particle's sensor is held, its reading says nothing of that sensor's other entries: the
-correction leaves them as they were. It used to correct a second type of the item that stood in
-mode 1 beside the stuck one (two sentinels of one item in one step), and the held value, learnt
-from what was left, hid it. In real-stuck run 89, 47 of the 50 stuck particles that took the
-cloud 0.8 s after the onset carried a drift entry 1.7 deg off its fault-free value; that value
-learnt it, and the attitude was declared three times after the fault. Now none does (the
-restore acted on 54 of the flight's 2500 frames).
+Kalman correction leaves them as they were (a drift in mode 1 beside it is still moved by its own
+tracker, `drift_type.DriftCorrection`, outside this part). It used to correct a second type of
+the item that stood in mode 1 beside the stuck one (two sentinels of one item in one step), and
+the held value, learnt from what was left, hid it. In real-stuck run 89, 47 of the 50 stuck
+particles that took the cloud 0.8 s after the onset carried a drift entry 1.7 deg off its
+fault-free value; that value learnt it, and the attitude was declared three times after the
+fault. Now none does (the restore acted on 54 of the flight's 2500 frames).
 
 `HeldCount` (a jump wrapper) keeps n per particle: 0 when the entry enters mode 1 (a sentinel or
 a hand-over), permuted on resampling. `HeldMeanCorrection` (a correction wrapper, outside
@@ -78,7 +79,7 @@ class HeldCount(JumpWrapper):
 class HeldMeanCorrection:
     """A correction part that learns each mode-1 held entry's reading as the mean of its readings
     (module docstring): after the inner correction, f += (y_r - H_r x) / (n + 1) per particle, and
-    the other entries of its row keep their values from before the correction.
+    the other entries of its row keep their values from before the inner correction.
 
     inner: the correction; count: the `HeldCount`; rows (k,): the held entries' rows; siblings
     (k, nf) bool: the other fault entries of each one's row.
