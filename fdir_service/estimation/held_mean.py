@@ -1,7 +1,8 @@
 """A stuck sensor's held reading learnt as the mean of its readings since it stuck (parts.held_value
 = "mean"; docs/faults.md, "A held value learnt from the readings").
 
-A stuck entry's held reading c = h_r z + f is set by its sentinel's draw from one noisy reading, and
+A stuck entry's held reading c = H_r x (h_r z + f, plus the row's other entries, small fault-free
+values under parts.mode0 = "drift") is set by its sentinel's draw from one noisy reading, and
 `fault_types.TypedCorrection` never moves it (a held value that followed the readings would follow
 the state). So a stuck particle mispredicts every later reading by its draw's error, about one
 noise sigma: half a nat a frame, which let a drift, whose level is corrected, fit a stuck reading
@@ -17,14 +18,15 @@ hypothesis weighed by the wider predictive of a constant learnt from n readings,
 (1 + 1/n), named the attitude stuck first in 2 of 8 climbs, against 3 of 8 without (and a drift
 first in 3 against 0; docs/faults.md).
 
-While a particle's sensor is held, its reading says nothing of that sensor's other entries: the
-Kalman correction leaves them as they were (a drift in mode 1 beside it is still moved by its own
-tracker, `drift_type.DriftCorrection`, outside this part). It used to correct a second type of
-the item that stood in mode 1 beside the stuck one (two sentinels of one item in one step), and
-the held value, learnt from what was left, hid it. In real-stuck run 89, 47 of the 50 stuck
-particles that took the cloud 0.8 s after the onset carried a drift entry 1.7 deg off its
-fault-free value; that value learnt it, and the attitude was declared three times after the
-fault. Now none does (the restore acted on 54 of the flight's 2500 frames).
+While a particle's sensor is held, its reading says nothing of that sensor's other entries: on
+the frames its row arrives, the Kalman correction leaves them as they were (a drift in mode 1
+beside it is still moved by its own tracker, `drift_type.DriftCorrection`, outside this part). It
+used to correct a second type of the item that stood in mode 1 beside the stuck one (two
+sentinels of one item in one step), and the held value, learnt from what was left, hid it. In
+real-stuck run 89, 47 of the 50 stuck particles that took the cloud 0.8 s after the onset carried
+a drift entry 1.7 deg off its fault-free value; that value learnt it, and the attitude was
+declared three times after the fault. Now none does (the restore acted on 54 of the flight's
+2500 frames).
 
 `HeldCount` (a jump wrapper) keeps n per particle: 0 when the entry enters mode 1 (a sentinel or
 a hand-over), permuted on resampling. `HeldMeanCorrection` (a correction wrapper, outside
@@ -93,6 +95,7 @@ class HeldMeanCorrection:
         self.siblings = np.asarray(siblings, dtype=float)
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
+        """The inner correction of X (n, N) in place, then the held means; returns its (N,) log-weights."""
         present = frame.mask[self.rows]
         if not present.any():
             return self.inner.update(X, w, modes, frame)

@@ -1,6 +1,6 @@
 """A stuck sensor's held reading learnt as the mean of its readings (fdir_service/estimation/
 held_mean.py, parts.held_value = "mean"): the held value is the mean of the readings since the
-entry stuck, the sensor's other entries are left alone meanwhile, the counts restart on entry and
+entry stuck, the sensor's other entries are left alone meanwhile, the counts restart on exit and
 follow their particles, and the catalogue estimator builds the parts only when asked."""
 
 from __future__ import annotations
@@ -88,12 +88,40 @@ def test_the_gain_is_one_over_the_readings_averaged_and_the_weight_is_the_inner_
     count.n[0] = [0.0, 1.0, 4.0]
     modes = np.array([[True] * 3, [False] * 3])
     ll = corr.update(X, np.full(3, 1 / 3), modes, frame(3.0))
-    assert not ll.any()                                  # the inner's (TypedCorrection: N(y; c, s2))
+    assert not ll.any()                                  # the inner's, unchanged
     np.testing.assert_allclose(held(X), [3.0, 2.5, 2.2])  # gains 1, 1/2, 1/5
     assert count.n[0].tolist() == [1.0, 2.0, 5.0]
 
 
-def test_the_counts_restart_when_an_entry_sticks_again_and_follow_resampling():
+def test_each_held_entry_learns_from_its_own_row_only_on_the_frames_it_arrives():
+    layout = FaultLayout(("baro_st", "th_st", "baro_dr"), ("sensor",) * 3,
+                         ("baro_alt", "theta", "baro_alt"), ROWS, ("stuck", "stuck", "drift"))
+    meas = MeasurementModel.build(layout, SIGMA)
+    class MovesTheDrift:
+        def update(self, X, w, modes, frame):
+            X[N_AIRFRAME + 2] += 1.0
+            return np.zeros(X.shape[1])
+
+    count = HeldCount(Jump(), np.array([0, 1]), 2)
+    siblings = np.array([[False, False, True], [False, False, False]])
+    corr = HeldMeanCorrection(MovesTheDrift(), count, np.array([0, 1]), siblings)
+    X = np.zeros((layout.n, 2))
+    modes = np.array([[True, False], [True, False], [False, False]])   # particle 1 is healthy
+    only_theta = Frame.of(1.0, np.array([0.0, 0.02]), np.array([False, True]), np.zeros(2), meas)
+    corr.update(X, np.full(2, 0.5), modes, only_theta)
+    assert count.n.tolist() == [[0.0, 0.0], [1.0, 0.0]]   # the barometer did not arrive
+    assert X[N_AIRFRAME + 1].tolist() == [0.02, 0.0]      # theta's held value
+    assert X[N_AIRFRAME].tolist() == [0.0, 0.0]
+    assert X[N_AIRFRAME + 2].tolist() == [1.0, 1.0]       # no barometer frame: nothing restored
+    both = Frame.of(1.0, np.array([10.0, 0.04]), np.ones(2, dtype=bool), np.zeros(2), meas)
+    corr.update(X, np.full(2, 0.5), modes, both)
+    assert count.n.tolist() == [[1.0, 0.0], [2.0, 0.0]]
+    assert X[N_AIRFRAME + 2].tolist() == [1.0, 2.0]       # kept where the barometer is held
+    assert meas.H[0] @ X[:, 0] == pytest.approx(10.0)     # the barometer's first reading, held
+    np.testing.assert_allclose(X[N_AIRFRAME + 1], [0.03, 0.0])
+
+
+def test_the_counts_restart_when_an_entry_leaves_mode_1_and_follow_resampling():
     count, _ = parts(4)
     count.n[0] = [5.0, 6.0, 7.0, 8.0]
     modes = np.ones((2, 4), dtype=bool)
