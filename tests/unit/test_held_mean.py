@@ -1,7 +1,7 @@
 """A stuck sensor's held reading learnt as the mean of its readings (fdir_service/estimation/
 held_mean.py, parts.held_value = "mean"): the held value is the mean of the readings since the
 entry stuck, the sensor's other entries are left alone meanwhile, the counts restart on exit and
-follow their particles, and the catalogue estimator builds the parts only when asked."""
+follow their particles, and the catalogue learns its held values while "sentinel" still draws them."""
 
 from __future__ import annotations
 
