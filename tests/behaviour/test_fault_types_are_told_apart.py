@@ -116,7 +116,7 @@ def test_a_stuck_attitude_sensor_is_named_stuck_after_at_most_a_short_drift(clim
     point's last bits send the clouds apart). Since parts.held_value = "mean" (`held_mean.py`) the
     held value is the mean of the readings since the sensor stuck: a drift was named first in none
     of the 8 on either path, stuck first in 3 (one thread) and 5 (two), the rest "type unclear"
-    first; stuck named 1.2-2.4 s after the onset (median 1.9 s on one thread, 1.4 s on two).
+    first; stuck named 1.2-2.4 s after the onset (median 1.9 s on one thread, 1.25 s on two).
     Asserted with room for other paths: declared within 3.5 s, stuck named within 5 s (median
     under 3 s), a drift named first in at most 1 of 8 and then for under 2 s, nothing but stuck
     after it."""
