@@ -93,6 +93,18 @@ class HeldMeanCorrection:
         self.rows = np.asarray(rows, dtype=int)
         self.entries = N_AIRFRAME + count.faults
         self.siblings = np.asarray(siblings, dtype=float)
+        self._kept: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _kept_entries(self, present: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(the state rows of the fault entries some present held row keeps (s,), siblings (p, s)
+        of the present rows over them), cached per pattern of present rows (k,) bool."""
+        key = present.tobytes()
+        hit = self._kept.get(key)
+        if hit is None:
+            sib = self.siblings[present]
+            cols = np.flatnonzero(sib.any(axis=0))
+            hit = self._kept[key] = (N_AIRFRAME + cols, np.ascontiguousarray(sib[:, cols].T))
+        return hit
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         """The inner correction of X (n, N) in place, then the held means; returns its (N,) log-weights."""
@@ -103,9 +115,10 @@ class HeldMeanCorrection:
         H, y = frame.mm.H[ri], frame.yv[ri, None]
         on = modes[self.count.faults[present]]
         n = self.count.n[present]
-        F = X[N_AIRFRAME:].copy()
+        kept, sib = self._kept_entries(present)
+        F = X[kept]                                  # a copy (fancy index): only the siblings' rows
         ll = self.inner.update(X, w, modes, frame)
-        np.copyto(X[N_AIRFRAME:], F, where=(self.siblings[present].T @ on) > 0)
+        X[kept] = np.where((sib @ on) > 0, F, X[kept])
         X[self.entries[present]] += np.where(on, (y - H @ X) / (n + 1.0), 0.0)
         self.count.n[present] = n + on
         return ll

@@ -49,10 +49,12 @@ class RateWindow:
         """mean(q) - LS slope of theta over the window (rad/s); None with too few samples."""
         if self.count < self.min_frames:
             return None
-        t, th, q = self.buffer[:self.count].T
-        tc = t - t.mean()
-        slope = float(tc @ (th - th.mean()) / (tc @ tc))
-        return float(q.mean()) - slope
+        n = self.count
+        t, th, q = self.buffer[:n].T
+        mean = np.add.reduce                      # x.mean() bit for bit, without its call overhead
+        tc = t - mean(t) / n
+        slope = float(tc @ (th - mean(th) / n) / (tc @ tc))
+        return float(mean(q) / n) - slope
 
 
 class RateWindowAmplitude(AmplitudePredictor):
