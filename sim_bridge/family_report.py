@@ -7,7 +7,7 @@ import json
 import re
 from pathlib import Path
 
-from sim_bridge.report import _fmt
+from sim_bridge.report import _fmt, while_active
 from sim_bridge.yardstick import rate_upper_bound
 
 FAULT_COLUMNS = ("f_theta", "f_q")
@@ -59,7 +59,7 @@ def yardstick_table(docs: dict[str, dict]) -> list[str]:
         fa_h = r["false_alarms"] / r["hours"] if r["hours"] > 0 else None
         bound = rate_upper_bound(r["false_alarms"], r["hours"])
         y, rmse = r["faulty"] if r["faulty"] else ({}, {})
-        det = f"{y['detected']} / {y['episodes']}" if y else "-"
+        det = f"{y['detected']} / {y['episodes']}{while_active(y)}" if y else "-"
         delay = y.get("delay_s", {}) if y else {}
         L.append(f"| {r['world']} | {r['filter']} | {_fmt(fa_h, 2)} | {_fmt(bound, 2)} | "
                  f"{r['false_alarms']} | {r['hours']:.2f} | {det} | "

@@ -699,7 +699,8 @@ def yardstick_markdown(doc: dict) -> list[str]:
         bound = rate_upper_bound(y["false_alarms"], y["fault_free_hours"])
         L.append(f"| {name} | {_fmt(y['false_alarms_per_hour'], 2)} | {_fmt(bound, 2)} | "
                  f"{y['false_alarms']} | {_fmt(y['fault_free_hours'], 2)} | "
-                 f"{_fmt(y.get('falsely_declared_fraction'))} | {y['detected']} / {y['episodes']} | "
+                 f"{_fmt(y.get('falsely_declared_fraction'))} | {y['detected']} / {y['episodes']}"
+                 f"{while_active(y)} | "
                  f"{_fmt(y['delay_s']['median'], 2)} | {_fmt(y['delay_s']['p90'], 2)} | "
                  f"{_fmt(y['isolation_accuracy'], 2)} |")
     L.append("")
@@ -750,6 +751,13 @@ def _goal(v: float | None, goal: float, at_least: bool, unit: str = "") -> str:
     return f"{_fmt(v, 2)}{unit} ({'met' if (v >= goal if at_least else v <= goal) else 'missed'})"
 
 
+def while_active(y: dict) -> str:
+    """" (D while active)": how many of the detected episodes of a yardstick (or a type's row) y
+    were declared before they ended (`yardstick.py`), "" for results written before the figure."""
+    during = y.get("detected_during")
+    return "" if during is None else f" ({during} while active)"
+
+
 def _goal_cells(r: dict, delay_unit: str = "") -> tuple[str, str, str]:
     """A type row's detection fraction, median delay and right item-and-type fraction, each with
     whether it meets the issue's goal (`GOALS`)."""
@@ -762,6 +770,7 @@ def _type_line(name: str, ty: str, r: dict) -> str:
     """One row of the per-fault-type table."""
     mag = ", ".join(f"{_fmt(v)} {u}" for u, v in r["magnitude_rmse"].items()) or _fmt(None)
     det, delay, right = _goal_cells(r)
+    det += while_active(r)
     named = r.get("named_s", {})
     return (f"| {name} | {ty} | {r['episodes']} | {det} | {delay} | {_fmt(r['delay_s']['p90'], 2)} | "
             f"{right} | {r.get('named', '-')} | {_fmt(named.get('median'), 2)} | "
@@ -778,7 +787,7 @@ def yardstick_lines(y: dict | None) -> list[str]:
     line = (f"false alarms {y['false_alarms']} in {y['fault_free_hours']:.2f} fault-free h: "
             f"{_fmt(y['false_alarms_per_hour'], 2)} per hour (95 % upper bound {_fmt(bound, 2)})")
     if y["episodes"]:
-        line += (f"; faults declared {y['detected']} / {y['episodes']}, "
+        line += (f"; faults declared {y['detected']} / {y['episodes']}{while_active(y)}, "
                  f"median delay {_fmt(y['delay_s']['median'], 2)} s")
     return [line]
 
@@ -788,7 +797,8 @@ def by_type_lines(y: dict | None) -> list[str]:
     (one line each, the goals beside the figures); [] for a bias-only world."""
     if not y or not y.get("by_type"):
         return []
-    return [f"{ty}: detected {det} of {r['episodes']}, median delay {delay}, right item and type {right}"
+    return [f"{ty}: detected {det} of {r['episodes']}{while_active(r)}, median delay {delay}, "
+            f"right item and type {right}"
             for ty, r in y["by_type"]["types"].items() for det, delay, right in (_goal_cells(r, " s"),)]
 
 

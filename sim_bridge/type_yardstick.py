@@ -17,7 +17,8 @@ window from onset to GRACE_S after the end (`sim_bridge.yardstick`):
   (`named_entry`: the most probable entry once it holds p_type of P(item), else "unclear"), beside
   the most probable at the first declared frame and SETTLE_S later (`item_view`);
 - **detected**: the item is declared in the window; **delay** from the onset to its first declared
-  frame (0 if it stood declared already);
+  frame (0 if it stood declared already); **declared while active** (`during`): that frame comes
+  before the episode's end (`sim_bridge.yardstick`);
 - **declared as**: the first item declared in the window (`yardstick.first_declared`: the fault's
   own item may stand declared already, any other must start its declaration inside the window),
   as (its item, its type then), else "missed";
@@ -225,7 +226,8 @@ def typed_episode(t: np.ndarray, dec: np.ndarray, view: ItemView, entries: Seque
     hit = first_standing(dec, win, item)
     first = first_declared(dec, win, item, view.names)
     out = {"item": fault.kind.target, "type": fault.kind.type, "detected": hit is not None,
-           "delay_s": float(t[s + hit[0]] - t[s]) if hit else None, "declared": MISSED,
+           "delay_s": float(t[s + hit[0]] - t[s]) if hit else None,
+           "during": hit is not None and s + hit[0] < e, "declared": MISSED,
            "right": False, "right_probable": False, "right_settled": False, "right_item": False,
            "named_s": None, "entry": right[0] if right else None}
     if not first:
@@ -287,6 +289,7 @@ def type_row(eps: list[dict]) -> dict:
     named = [ep["named_s"] for ep in eps if ep["named_s"] is not None]
     return {"episodes": len(eps), "detected": len(delays),
             "detection_fraction": _fraction(eps, "detected"), "delay_s": delay_stats(delays),
+            "detected_during": sum(1 for ep in eps if ep.get("during")),
             "right_fraction": _fraction(eps, "right"), "right_item_fraction": _fraction(eps, "right_item"),
             "right_probable_fraction": _fraction(eps, "right_probable"),
             "right_settled_fraction": _fraction(eps, "right_settled"),

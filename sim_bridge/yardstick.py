@@ -11,7 +11,10 @@ clears it when P <= p_clear for clear_hold_s (`[publish.declare]` of the service
   the **falsely declared fraction** the share of fault-free time with any fault declared;
 - an injected fault episode is **detected** when a monitored fault that answers it is declared at
   some frame from its onset to GRACE_S after its end; its **delay** is from the onset to that
-  frame (0 if it was declared already). The answer is the monitored fault of the same id
+  frame (0 if it was declared already). It is **declared while active** when that frame comes
+  before the episode's end: a first declaration in the GRACE_S after it is the fault caught late, or
+  only the state error it left (a slow ramp the state followed, declared when the reading snaps
+  back), and is counted apart (`detected_during`). The answer is the monitored fault of the same id
   (`id_matches`, bias-only worlds) or, in a world of typed faults, every entry of the same item
   and type (`sim_bridge.type_yardstick.item_type_matches`);
 - **isolation**: the answering fault when it was detected, else the first other monitored
@@ -211,15 +214,15 @@ def first_declared(dec: np.ndarray, win: slice, own: list[int],
 def _episode(t: np.ndarray, dec: np.ndarray, fault_ids: list[str], wid: str, own: list[int],
              s: int, e: int) -> dict:
     """Detection and isolation of one injected episode [s, e) of world fault wid, answered by the
-    monitored faults `own` (indices into fault_ids)."""
+    monitored faults `own` (indices into fault_ids); "during": declared before the episode's end."""
     win = episode_window(t, s, e)
     hit = first_standing(dec, win, own)
     if hit:
         k, j = hit
         return {"id": wid, "detected": True, "delay_s": float(t[s + k] - t[s]),
-                "isolated_as": fault_ids[j], "right": True}
+                "during": s + k < e, "isolated_as": fault_ids[j], "right": True}
     first = first_declared(dec, win, [], fault_ids)
-    return {"id": wid, "detected": False, "delay_s": None,
+    return {"id": wid, "detected": False, "delay_s": None, "during": False,
             "isolated_as": fault_ids[first[1]] if first else "none", "right": False}
 
 
@@ -251,6 +254,7 @@ def pool(runs: list[dict], world_ids: list[str], run_ids: list[int] | None = Non
         "falsely_declared_fraction": (false_h / hours) if hours > 0 else None,
         "episodes": len(eps), "detected": len(delays),
         "detection_fraction": (len(delays) / len(eps)) if eps else None,
+        "detected_during": sum(1 for ep in eps if ep.get("during")),
         "delay_s": delay_stats(delays),
         "isolation": confusion,
         "isolation_accuracy": (right / len(eps)) if eps else None,

@@ -9,7 +9,7 @@ import pytest
 from fdir_service.estimation.base import StepOutput
 from fdir_service.mavlink import new_mavlink
 from fdir_service.runtime.publishing import Publisher
-from sim_bridge.report import yardstick_markdown
+from sim_bridge.report import yardstick_lines, yardstick_markdown
 from sim_bridge.yardstick import (
     GRACE_S,
     Hysteresis,
@@ -126,6 +126,23 @@ def test_detection_delay_isolation_and_the_grace_period():
     assert y["delay_s"]["median"] == pytest.approx(0.5, abs=1e-9)     # 0.3 s crossing + 0.2 s hold
     assert y["isolation"] == {"theta": {"theta": 1}, "de": {"q": 1}}
     assert y["isolation_accuracy"] == 0.5
+
+
+def test_a_fault_first_declared_after_it_ended_is_detected_but_not_while_active():
+    """theta injected 30-40 s and declared from 41 s (in the grace, the state error a ramp left):
+    detected with an 11.2 s delay, not while active; a second episode 60-70 s declared at 61 s is
+    both. The report prints the count beside the faults declared."""
+    t = _t(100.0)
+    world = np.zeros((t.size, 1))
+    world[(t >= 30) & (t < 40), 0] = 0.1
+    world[(t >= 60) & (t < 70), 0] = 0.1
+    p = np.zeros((t.size, 1))
+    p[(t >= 41.0) & (t < 42.5), 0] = 1.0
+    p[(t >= 61.0) & (t < 70), 0] = 1.0
+    y = pool([run_yardstick(t, p, ["theta"], world, ["theta"], RULE)], ["theta"])
+    assert y["detected"] == 2 and y["detected_during"] == 1
+    assert sorted(y["delay_s"][k] for k in ("median", "max")) == pytest.approx([6.2, 11.2], abs=1e-9)
+    assert "faults declared 2 / 2 (1 while active)" in yardstick_lines(y)[0]
 
 
 def test_roc_trades_false_alarms_for_detections():

@@ -64,6 +64,17 @@ def test_the_wrong_type_first_is_detected_on_its_item_but_not_right():
     assert ep["declared"] == "baro_alt:bias" and not ep["right"] and ep["right_item"]
 
 
+def test_a_declaration_after_the_end_is_detected_but_not_while_active():
+    assert _one(BARO_STUCK, {1: 10.5})["during"]
+    prob = np.zeros((T.size, len(ENTRIES)))
+    prob[_between(21.0, 22.5), 1] = 1.0                       # declared 1 s after the 10-20 s episode
+    (ep,) = typed_run(T, prob, np.zeros_like(prob), ENTRIES, NAMES, [BARO_STUCK], np.zeros((T.size, 1)),
+                      _between(10.0, 20.0)[:, None], RULE)
+    assert ep["detected"] and not ep["during"] and ep["delay_s"] == pytest.approx(11.2, abs=1e-9)
+    row = pool_by_type([ep])["types"]["stuck"]
+    assert row["detected"] == 1 and row["detected_during"] == 0
+
+
 def test_another_item_declared_is_not_detected_and_the_wrong_item():
     ep = _one(BARO_STUCK, {3: 11.0})
     assert not ep["detected"] and ep["delay_s"] is None
@@ -169,11 +180,11 @@ def test_a_typed_world_is_scored_by_item_and_type_and_reported_per_type():
     y = {"false_alarms_per_hour": 0.0, "by_type": by_type}
     md = "\n".join(by_type_markdown([("RJMRPF", y)]))
     assert "## Per fault type" in md and "(goal >= 95%)" in md and "(goal <= 2 s)" in md
-    assert "| RJMRPF | stuck | 2 | 1.00 (met) | 0.95 (met) |" in md
+    assert "| RJMRPF | stuck | 2 | 1.00 (met) (2 while active) | 0.95 (met) |" in md
     assert "0.50 (missed)" in md
     assert "| baro_alt:stuck | 1 | 1 | 0 |" in md                # columns: bias, stuck, missed
-    assert by_type_lines(y) == ["stuck: detected 1.00 (met) of 2, median delay 0.95 s (met), "
-                                "right item and type 0.50 (missed)"]
+    assert by_type_lines(y) == ["stuck: detected 1.00 (met) of 2 (2 while active), median delay 0.95 s "
+                                "(met), right item and type 0.50 (missed)"]
 
 
 def test_a_bias_only_world_has_no_per_type_section():
