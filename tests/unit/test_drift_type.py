@@ -187,8 +187,7 @@ def test_an_estimator_picks_the_dead_reckoned_window_by_its_setting():
     doc["parts"]["drift_rate_window"] = "dead_reckoned"
     filt = build_filter("RJMRPF", parse_estimator(doc, "dr.toml"), np.random.default_rng(0), particles=50)
     assert isinstance(filt.parts.jump.window, DeadReckonedSlope)
-    plain = build_filter("RJMRPF", load_estimator("aerosonde-catalogue"), np.random.default_rng(0),
-                         particles=50)
+    plain = build_filter("RJMRPF", load_estimator("aerosonde-catalogue"), np.random.default_rng(0), particles=50)
     assert type(plain.parts.jump.window) is OffsetSlope
 
 
