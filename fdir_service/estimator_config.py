@@ -192,9 +192,6 @@ class FilterSettings:
     rate_sentinel: str = "row"           # gyro fault amplitude: "row" (eq. 4.16) | "window" (theta slope)
     held_value: str = "sentinel"         # a stuck reading's held value: "sentinel" (its draw) | "mean"
     #                                      (the mean of its readings since it stuck; held_mean.py)
-    drift_rate_window: str = "offset"    # a new drift's rate: the slope of its row's offset against the
-    #                                      cloud ("offset") | against the state the readings carry
-    #                                      ("dead_reckoned"; drift_type.DeadReckonedSlope)
     rate_window_s: float = 1.0           # the window of rate_sentinel = "window" (s)
     thrust_sigma: float = 0.01           # noise of the derived throttle row (0..1 throttle scale)
     q_tail: tuple[float, ...] = (0.0, 1.0)  # (share, scale): heavy-tailed pitch-rate process noise
@@ -446,7 +443,7 @@ _CHOICES = {
     "mode0": ("forced_zero", "reset_on_exit", "drift"), "sentinel_weighting": ("thesis", "prior"),
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
-    "held_value": ("sentinel", "mean"), "drift_rate_window": ("offset", "dead_reckoned"),
+    "held_value": ("sentinel", "mean"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""

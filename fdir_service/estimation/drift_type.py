@@ -99,49 +99,6 @@ class OffsetSlope:
         return b, se
 
 
-class DeadReckonedSlope(OffsetSlope):
-    """`OffsetSlope` against a state the readings carry, not the cloud's (parts.drift_rate_window =
-    "dead_reckoned"): the offset a = y_r - D_r, with D_r the sum over frames of h_r (f(z) - z), z
-    the cloud's mean airframe state with every state a row measures alone (u, w, theta, q) replaced
-    by this frame's reading, f the process model's step. So the slope of a is the row's slope less
-    the mean rate the readings give it: slope(y_baro) - mean(u sin theta - w cos theta),
-    slope(y_theta) - mean(y_q).
-
-    The cloud's state follows a slow ramp of the row it trusts most: on real-drift run 33 the state
-    took a 0.9 m/s barometer ramp within the other sensors' noise (w 0.35 m/s and theta 0.5 deg off
-    for 12 s), its offset against the cloud never grew, a new drift's rate was proposed around 0,
-    and the ramp was declared only when the reading snapped back. The readings' own climb rate is
-    noisier (about 1.6 m/s a frame) but does not follow the barometer.
-
-    process: the filter's process model (`propagate` of one state (n,) with the frame's inputs).
-    """
-
-    def __init__(self, rows: np.ndarray, H: np.ndarray, frames: int, process) -> None:
-        super().__init__(rows, H, frames)
-        self.process = process
-        A = np.asarray(H, dtype=float)[:, :N_AIRFRAME]
-        alone = (np.count_nonzero(A, axis=1) == 1) & (A.max(axis=1) == 1.0)
-        self.direct = np.flatnonzero(alone)
-        """Rows that measure one airframe state alone, at unit gain ..."""
-        self.state_of = np.argmax(A[self.direct], axis=1)
-        """... and that state."""
-        self.D = np.zeros(self.rows.size)
-
-    def observe(self, X: np.ndarray, w: np.ndarray, frame: Frame) -> None:
-        """Store this frame's offsets against the dead-reckoned D_r (NaN where the row did not arrive)."""
-        z = X @ w
-        present = frame.mask[self.direct]
-        z[self.state_of[present]] = frame.yv[frame.row_of[self.direct[present]]]
-        self.D += self.h @ (self.process.propagate(z, frame.u)[:N_AIRFRAME] - z[:N_AIRFRAME])
-        present = frame.mask[self.rows]
-        y = np.full(self.rows.size, np.nan)
-        y[present] = frame.yv[frame.row_of[self.rows[present]]]
-        i = self.k % self.t.size
-        self.t[i] = frame.t
-        self.a[:, i] = y - self.D
-        self.k += 1
-
-
 class DriftAnchor:
     """A drift that ends re-anchors the state (as a stuck sensor's return does,
     `fault_types.TypeSwitch.anchor`): half the particles whose drift entry leaves mode 1 with no

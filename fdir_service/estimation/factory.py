@@ -20,7 +20,6 @@ from fdir_service.estimation.adaptive import AdaptiveTransition
 from fdir_service.estimation.amplitude import NO_ONSET_STEP, AmplitudePredictor
 from fdir_service.estimation.correction import KalmanCorrection, Likelihood
 from fdir_service.estimation.drift_type import (
-    DeadReckonedSlope,
     DriftAnchor,
     DriftCorrection,
     DriftJump,
@@ -358,10 +357,7 @@ def _drift(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         return parts
     sigma = np.array([estimator.faults[j].rate_sigma for j in drift.tolist()])
     rows = layout.sensor_row[drift]
-    frames = int(round(DRIFT_WINDOW_S / estimator.dt_s))
-    window = (DeadReckonedSlope(rows, meas.H, frames, parts.predict.process)
-              if estimator.settings.drift_rate_window == "dead_reckoned"
-              else OffsetSlope(rows, meas.H, frames))
+    window = OffsetSlope(rows, meas.H, int(round(DRIFT_WINDOW_S / estimator.dt_s)))
     parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window,
                            DriftAnchor(rows, meas.H, _row_siblings(layout, drift)))
     parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])

@@ -10,7 +10,6 @@ import pytest
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.drift_type import (
-    DeadReckonedSlope,
     DriftAnchor,
     DriftCorrection,
     DriftJump,
@@ -148,47 +147,6 @@ def test_the_offset_window_measures_a_ramps_slope():
         win.observe(X, np.ones(1), frame(k * DT, (500.0 + 0.8 * k * DT + noise[k], 0.0)))
     b, se = win.slope()
     assert abs(b[0] - 0.8) < 3 * se[0] and se[0] < 0.3
-
-
-class ClimbOnW:
-    """A process stub: the altitude climbs at -w (p_d' = w), nothing else moves."""
-
-    def propagate(self, X, u):
-        out = X.copy()
-        out[0] += DT * X[2]
-        return out
-
-
-def test_the_dead_reckoned_window_sees_a_ramp_the_clouds_state_followed():
-    """A 0.8 m/s barometer ramp in a 1 m/s climb that the cloud's altitude followed: its offset
-    against the cloud stays flat, against the altitude the w readings carry it ramps at 0.8 m/s."""
-    layout = FaultLayout(("baro", "baro_dr"), ("sensor", "sensor"), ("baro_alt", "baro_alt"),
-                         ("baro_alt", "w"), ("bias", "drift"))
-    meas = MeasurementModel.build(layout, np.array([1.5, 1.5]))
-    offset = OffsetSlope(np.array([0]), meas.H, 60)
-    dead = DeadReckonedSlope(np.array([0]), meas.H, 60, ClimbOnW())
-    rng = np.random.default_rng(4)
-    X = np.zeros((layout.n, 1))
-    for k in range(60):
-        t = k * DT
-        y = np.array([500.0 + 1.8 * t + rng.normal(0.0, 1.0), -1.0 + rng.normal(0.0, 1.5)])
-        X[0] = -(500.0 + 1.8 * t)                        # the state followed the barometer
-        fr = Frame.of(t, y, np.ones(2, dtype=bool), np.zeros(2), meas)
-        offset.observe(X, np.ones(1), fr)
-        dead.observe(X, np.ones(1), fr)
-    b0, _ = offset.slope()
-    b, se = dead.slope()
-    assert abs(b0[0]) < 0.5
-    assert abs(b[0] - 0.8) < 3 * se[0] and se[0] < 0.5
-
-
-def test_an_estimator_picks_the_dead_reckoned_window_by_its_setting():
-    doc, _ = estimator_document("aerosonde-catalogue")
-    doc["parts"]["drift_rate_window"] = "dead_reckoned"
-    filt = build_filter("RJMRPF", parse_estimator(doc, "dr.toml"), np.random.default_rng(0), particles=50)
-    assert isinstance(filt.parts.jump.window, DeadReckonedSlope)
-    plain = build_filter("RJMRPF", load_estimator("aerosonde-catalogue"), np.random.default_rng(0), particles=50)
-    assert type(plain.parts.jump.window) is OffsetSlope
 
 
 def test_the_correction_moves_a_lagging_rate_and_its_offset_towards_the_data():
