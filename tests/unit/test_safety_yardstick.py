@@ -145,6 +145,27 @@ def test_a_fault_first_declared_after_it_ended_is_detected_but_not_while_active(
     assert "faults declared 2 / 2 (1 while active)" in yardstick_lines(y)[0]
 
 
+@pytest.mark.parametrize("rise_s, during", [(39.75, True), (39.8, False)])
+def test_while_active_ends_at_the_episodes_last_active_frame(rise_s: float, during: bool):
+    """theta injected 30-40 s (last active frame 39.95 s): P rising at 39.75 s is declared on that
+    frame (0.2 s hold), while active; rising at 39.8 s, on the first frame after the end."""
+    t = _t(60.0)
+    world = np.zeros((t.size, 1))
+    world[(t >= 30 - 1e-9) & (t < 40 - 1e-9), 0] = 0.1
+    p = np.zeros((t.size, 1))
+    p[(t >= rise_s - 1e-9) & (t < 45), 0] = 1.0
+    y = pool([run_yardstick(t, p, ["theta"], world, ["theta"], RULE)], ["theta"])
+    assert y["detected"] == 1 and y["detected_during"] == int(during)
+    assert y["delay_s"]["median"] == pytest.approx(9.95 if during else 10.0, abs=1e-9)
+
+
+def test_a_yardstick_written_before_the_figure_prints_no_while_active():
+    old = {"false_alarms": 0, "fault_free_hours": 1.0, "false_alarms_per_hour": 0.0, "episodes": 2,
+           "detected": 2, "delay_s": {"median": 0.5, "p90": 0.5, "max": 0.5, "n": 2}}
+    assert "faults declared 2 / 2, median delay 0.50 s" in yardstick_lines(old)[0]
+    assert "while active" not in yardstick_lines(old)[0]
+
+
 def test_roc_trades_false_alarms_for_detections():
     """Noise peaks at 0.75 make false alarms only below p_declare 0.8; a fault at P = 0.85 is found
     only below 0.9."""
