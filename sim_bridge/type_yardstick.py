@@ -42,6 +42,7 @@ from sim_bridge.scenario import ProfileComponent
 from sim_bridge.yardstick import (
     Hysteresis,
     declarations,
+    declared_during,
     delay_stats,
     episode_window,
     episodes,
@@ -289,7 +290,7 @@ def type_row(eps: list[dict]) -> dict:
     named = [ep["named_s"] for ep in eps if ep["named_s"] is not None]
     return {"episodes": len(eps), "detected": len(delays),
             "detection_fraction": _fraction(eps, "detected"), "delay_s": delay_stats(delays),
-            "detected_during": sum(1 for ep in eps if ep.get("during")),
+            "detected_during": declared_during(eps),
             "right_fraction": _fraction(eps, "right"), "right_item_fraction": _fraction(eps, "right_item"),
             "right_probable_fraction": _fraction(eps, "right_probable"),
             "right_settled_fraction": _fraction(eps, "right_settled"),

@@ -226,6 +226,11 @@ def _episode(t: np.ndarray, dec: np.ndarray, fault_ids: list[str], wid: str, own
             "isolated_as": fault_ids[first[1]] if first else "none", "right": False}
 
 
+def declared_during(eps: list[dict]) -> int:
+    """How many episodes (`_episode`, `type_yardstick.typed_episode`) were declared while active."""
+    return sum(1 for ep in eps if ep.get("during"))
+
+
 def delay_stats(delays: list[float]) -> dict:
     """median, p90, max (s; None without delays) and n of detection delays (s)."""
     def q(x: float) -> float | None:
@@ -254,7 +259,7 @@ def pool(runs: list[dict], world_ids: list[str], run_ids: list[int] | None = Non
         "falsely_declared_fraction": (false_h / hours) if hours > 0 else None,
         "episodes": len(eps), "detected": len(delays),
         "detection_fraction": (len(delays) / len(eps)) if eps else None,
-        "detected_during": sum(1 for ep in eps if ep.get("during")),
+        "detected_during": declared_during(eps),
         "delay_s": delay_stats(delays),
         "isolation": confusion,
         "isolation_accuracy": (right / len(eps)) if eps else None,

@@ -51,10 +51,10 @@ class RateWindow:
             return None
         n = self.count
         t, th, q = self.buffer[:n].T
-        mean = np.add.reduce                      # x.mean() bit for bit, without its call overhead
-        tc = t - mean(t) / n
-        slope = float(tc @ (th - mean(th) / n) / (tc @ tc))
-        return float(mean(q) / n) - slope
+        total = np.add.reduce                     # total(x) / n is x.mean() bit for bit, without its overhead
+        tc = t - total(t) / n
+        slope = float(tc @ (th - total(th) / n) / (tc @ tc))
+        return float(total(q) / n) - slope
 
 
 class RateWindowAmplitude(AmplitudePredictor):
