@@ -112,6 +112,14 @@ READING_NOTES: tuple[str, ...] = (
 )
 
 
+FLIES_ON = {
+    "monitor": "every filter's autopilot flies on that filter's own estimate.",
+    "onboard": "the autopilot flies on its own navigation, the filters only watch (navigation "
+               "\"onboard\": the true state through its sensors' faults, sim_bridge/onboard_nav.py).",
+}
+"""What a report says the autopilot flew on, by results.json's "navigation" (absent: "monitor")."""
+
+
 def thesis_tables() -> dict:
     """The thesis's Tables 4.1-6.1 (thesis_tables.json): config/experiments/, else docs/results/."""
     here = Path(__file__).resolve().parent.parent
@@ -187,7 +195,8 @@ def summarise(camp: Campaign) -> dict:
     """The results.json document of a campaign."""
     sc = camp.scenario
     doc = {"scenario": sc.id, "runs": camp.runs, "particles": camp.particles, "seed": camp.seed,
-           "wall_s": round(camp.wall_s, 3), "environment": environment(), "filters": {}}
+           "navigation": sc.navigation, "wall_s": round(camp.wall_s, 3), "environment": environment(),
+           "filters": {}}
     hold = 0.25
     for name, fr in camp.filters.items():
         t = fr.t
@@ -293,7 +302,7 @@ def markdown(  # noqa: C901 - report assembly: one section after another, each a
              if scenario.thesis_table else "")
     L = [f"# {sid}: {scenario.title}", "",
          where + f"{doc['runs']} closed-loop Monte Carlo runs, N = {doc['particles']} particles, seed "
-         f"{doc['seed']}; every filter's autopilot flies on that filter's own estimate."
+         f"{doc['seed']}; {FLIES_ON[doc.get('navigation', 'monitor')]}"
          + (f" Campaign wall time {wall_s:.1f} s." if wall_s is not None else "")
          + _environment_text(doc.get("environment")), ""]
     orders = check_orderings({sid: doc})

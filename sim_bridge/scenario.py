@@ -32,6 +32,7 @@ from fdir_service.estimator_config import (
 )
 from fdir_service.paths import config_path
 from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, TomlTable, load_toml
+from sim_bridge.onboard_nav import NAVIGATION
 from sim_bridge.world_config import RealSky, parse_real_sky
 
 PROFILE_SHAPES = ("step", "exponential", "ramp", "intermittent")
@@ -171,6 +172,9 @@ class Scenario:
     source: str = ""
     sky: RealSky = RealSky()
     """Wind, turbulence, airframe dispersion and the engine (all off in the thesis experiments)."""
+    navigation: str = "monitor"
+    """What the autopilot flies on (`[world.autopilot] navigation`, `sim_bridge.onboard_nav`):
+    "monitor", the monitor's own estimate (the thesis's closed loop), or "onboard", its own."""
 
     @property
     def steps(self) -> int:
@@ -338,7 +342,7 @@ def _sensors(w: TomlTable) -> SensorConfig:
 
 
 def _world(root: TomlTable) -> dict[str, Any]:
-    """The world's parts as Scenario fields: truth, command, sensors, faults, sky."""
+    """The world's parts as Scenario fields: truth, command, sensors, faults, sky, navigation."""
     w = root.sub("world", required=True)
     truth = _truth(w)
     command = _command(w, truth)
@@ -348,8 +352,18 @@ def _world(root: TomlTable) -> dict[str, Any]:
     if len(set(ids)) != len(ids):
         raise ConfigError(f"world.faults: fault ids must be unique, got {ids}")
     sky = parse_real_sky(w, truth.model)
+    navigation = _navigation(w)
     w.finish()
-    return dict(truth=truth, command=command, sensors=sensors, faults=faults, sky=sky)
+    return dict(truth=truth, command=command, sensors=sensors, faults=faults, sky=sky,
+                navigation=navigation)
+
+
+def _navigation(w: TomlTable) -> str:
+    """`[world.autopilot] navigation`: "monitor" (default) or "onboard" (`sim_bridge.onboard_nav`)."""
+    ap = w.sub("autopilot")
+    navigation = ap.take("navigation", "string", "monitor", choices=NAVIGATION)
+    ap.finish()
+    return navigation
 
 
 def _estimator_doc(root: TomlTable, exp_id: str, sensors: SensorConfig) -> dict[str, Any]:

@@ -23,6 +23,7 @@ from fdir_service.airframe import AirframeParams, linearize, load_airframe
 from sim_bridge.autopilot import Autopilot
 from sim_bridge.fault_types import activity, is_typed
 from sim_bridge.faults import fault_vector, vary_profiles
+from sim_bridge.onboard_nav import OnboardNavigation
 from sim_bridge.scenario import Scenario
 from sim_bridge.sensors import SensorSuite
 from sim_bridge.wind import ned_to_body
@@ -197,7 +198,9 @@ def run(scenario: Scenario, seed: int, seconds: float | None = None, nav: NavFn 
     """Fly the scenario in closed loop for `seconds` (default scenario.duration_s) at scenario.dt_s.
 
     nav(t, y, mask, u_prev) returns an object with `.state` (5,) or a (5,) array; None flies on
-    the truth. `autopilot` overrides the default design (tests use it for custom commands).
+    the truth. Under scenario.navigation = "onboard" the autopilot flies on its own navigation
+    (`onboard_nav`) whatever nav returns; nav still runs on every frame and is recorded.
+    `autopilot` overrides the default design (tests use it for custom commands).
     """
     stepper = SimStepper(scenario, seed, airframe)
     ap = autopilot if autopilot is not None else default_autopilot(scenario, stepper.airframe)
@@ -216,6 +219,7 @@ def run(scenario: Scenario, seed: int, seconds: float | None = None, nav: NavFn 
     gamma = np.empty(K)
     ps = np.empty(K)
     outputs: list = []
+    onboard = OnboardNavigation(scenario.faults) if scenario.navigation == "onboard" else None
     for k in range(K):
         fr = stepper.frame()
         if nav is None:
@@ -224,7 +228,8 @@ def run(scenario: Scenario, seed: int, seconds: float | None = None, nav: NavFn 
             out = nav(fr.t, fr.y, fr.mask, fr.u_applied)
             outputs.append(out)
             z_nav = np.asarray(out.state if hasattr(out, "state") else out, dtype=float)
-        u_k = ap.update(fr.t, fr.autopilot_view(z_nav))
+        view = fr.autopilot_view(z_nav) if onboard is None else onboard.view(fr)
+        u_k = ap.update(fr.t, view)
         t[k], z[k], y[k], mask[k], faults[k] = fr.t, fr.z_true, fr.y, fr.mask, stepper.fault_truth(u_k)
         u[k], navs[k], gamma[k], ps[k] = u_k, z_nav, ap.gamma_command, fr.static_pressure_pa
         active[k] = fr.active

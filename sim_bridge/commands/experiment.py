@@ -4,11 +4,13 @@ report.md and figures side by side with the thesis's tables."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from pathlib import Path
 
 from fdir_service.errors import ConfigError
+from sim_bridge.onboard_nav import NAVIGATION
 from sim_bridge.scenario import FAMILIES, load_scenario
 
 
@@ -32,6 +34,10 @@ def add_parser(subparsers) -> None:
                    help="send the runs to this dask.distributed scheduler instead of local processes")
     p.add_argument("--filters", default=None,
                    help="comma-separated subset of filters (default: the scenario's plus EKF-GATE)")
+    p.add_argument("--navigation", choices=NAVIGATION, default=None,
+                   help="what the autopilot flies on, overriding the world's [world.autopilot] navigation: "
+                   "'monitor' (the filter's own estimate, the thesis's closed loop) or 'onboard' (its own "
+                   "navigation, as a stock autopilot beside this monitor: docs/real-world.md)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--publish", metavar="DOCS", default=None,
@@ -60,6 +66,8 @@ def _run_one(args: argparse.Namespace, sid: str, filters: list[str] | None) -> t
     from sim_bridge.report import by_type_lines, write_report, yardstick_lines
 
     sc = load_scenario(sid)
+    if args.navigation is not None:
+        sc = dataclasses.replace(sc, navigation=args.navigation)
     out = _out_dir(args, sc.id)
     ts = time.perf_counter()
     camp = run_campaign(sc, args.runs, args.particles, args.seed, workers=args.workers,
