@@ -116,3 +116,29 @@ def test_stepper_frame_is_stable_until_advance():
         assert np.array_equal(fr.y, tr.y[k])
         st.advance(ap.update(fr.t, fr.z_true))
     assert np.array_equal(st.truth.z, run(sc, 9, seconds=15.05).z[-1])
+
+
+def test_onboard_navigation_ignores_the_monitor():
+    # navigation = "onboard": the autopilot flies on its own navigation, whatever the monitor says
+    sc = dataclasses.replace(load_scenario("ch5c"), navigation="onboard")   # elevator and gyro faults
+
+    def lost(t, y, mask, u_prev):      # a monitor that has lost the state altogether
+        return _Out(np.array([0.0, 5.0, -3.0, 1.0, 0.5]))
+
+    alone, watched = run(sc, 4, seconds=25.0), run(sc, 4, seconds=25.0, nav=lost)
+    for name in ("z", "y", "u", "faults"):
+        assert np.array_equal(getattr(alone, name), getattr(watched, name)), name
+    assert np.array_equal(watched.nav[-1], [0.0, 5.0, -3.0, 1.0, 0.5])   # what the monitor said
+    monitored = run(dataclasses.replace(sc, navigation="monitor"), 4, seconds=25.0, nav=lost)
+    assert np.max(np.abs(monitored.z[:, 0] - watched.z[:, 0])) > 10.0   # on its estimate: upset
+
+
+def test_onboard_navigation_follows_its_faulty_barometer():
+    # A barometer reading 10 m high: an autopilot on its own navigation holds 500 m on it, 490 m true
+    from sim_bridge.scenario import FaultChannel, ProfileComponent
+
+    baro = FaultChannel(id="baro", target="baro_alt", kind="sensor", unit="m",
+                        profile=(ProfileComponent("step", 0.0, 1e9, 10.0),))
+    sc = dataclasses.replace(_fault_free("ch5a", "nonlinear"), faults=(baro,), navigation="onboard")
+    tr = run(sc, 3, seconds=40.0)
+    assert -tr.z[-1, 0] == pytest.approx(490.0, abs=0.5)
