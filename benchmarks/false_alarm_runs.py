@@ -2,6 +2,7 @@
 false alarms per flight hour.
 
     python benchmarks/false_alarm_runs.py real-stuck [--runs 100] [--first 0] [--seed 0] [--workers 2]
+                                                     [--navigation monitor|onboard]
 
 Flies each run as `sim-bridge experiment` does (campaign seed --seed, default 0; RJMRPF),
 declares items as the service does (P(item) over its types, the declare hysteresis) and prints,
@@ -14,11 +15,13 @@ item:type@time (s), the injected faults' onsets, and each injected fault its ite
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from multiprocessing import Pool
 
 import numpy as np
 
 from sim_bridge.campaign import fly
+from sim_bridge.onboard_nav import NAVIGATION
 from sim_bridge.scenario import load_scenario
 from sim_bridge.type_yardstick import item_view, kind_of
 from sim_bridge.yardstick import Hysteresis, declared, episode_window, quiet_mask
@@ -27,11 +30,13 @@ LOST_M = 100.0
 """An altitude error above this (m) marks a run whose state was lost."""
 
 
-def false_declarations(world: str, run: int, seed: int = 0
+def false_declarations(world: str, run: int, seed: int = 0, navigation: str | None = None
                        ) -> tuple[int, np.ndarray, list[str], list[tuple[str, float]], list[str]]:
     """(run, max |state error| (5,), false declarations "item:type@t", [(fault id, onset s)],
-    the injected faults never declared)."""
+    the injected faults never declared); navigation: overrides the world's (`onboard_nav`)."""
     sc = load_scenario(world)
+    if navigation is not None:
+        sc = dataclasses.replace(sc, navigation=navigation)
     tr = fly(sc, "RJMRPF", run, seed)                      # on one BLAS thread per worker
     P = np.array([o.fault_probability for o in tr.outputs])
     X = np.array([o.x_mean[:5] for o in tr.outputs])
@@ -72,9 +77,11 @@ def main() -> None:
     ap.add_argument("--first", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0, help="campaign seed (sim-bridge experiment --seed)")
+    ap.add_argument("--navigation", choices=NAVIGATION, default=None,
+                    help="what the autopilot flies on (sim-bridge experiment --navigation)")
     a = ap.parse_args()
     with Pool(a.workers) as pool:
-        jobs = [(a.world, r, a.seed) for r in range(a.first, a.runs)]
+        jobs = [(a.world, r, a.seed, a.navigation) for r in range(a.first, a.runs)]
         for run, err, found, onsets, missed in pool.starmap(false_declarations, jobs):
             lost = " LOST" if err[0] > LOST_M else ""
             if found or lost or missed:

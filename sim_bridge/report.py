@@ -737,7 +737,14 @@ def false_alarm_markdown(name: str, y: dict, doc: dict) -> list[str]:
     more = f"; and {extra} more (results.json)" if extra > 0 else ""
     return [f"False alarms, {name} (run: item declared at, standing for): {shown}{more}. "
             f"To fly run R again and list its declarations: `python benchmarks/false_alarm_runs.py "
-            f"{doc.get('scenario', 'WORLD')} --seed {doc.get('seed', 0)} --first R --runs R+1`.", ""]
+            f"{doc.get('scenario', 'WORLD')} --seed {doc.get('seed', 0)}{_navigation_flag(doc)} "
+            "--first R --runs R+1`.", ""]
+
+
+def _navigation_flag(doc: dict) -> str:
+    """The flag that flies a campaign's runs again on the autopilot's navigation ("" for the world's)."""
+    nav = doc.get("navigation", "monitor")
+    return "" if nav == "monitor" else f" --navigation {nav}"
 
 
 def _confusion_markdown(title: str, head: str, confusion: dict[str, dict[str, int]],

@@ -63,3 +63,13 @@ def test_a_world_asks_for_onboard_navigation_and_a_bad_value_names_the_key():
 def test_a_report_says_what_the_autopilot_flew_on():
     assert "own estimate" in FLIES_ON["monitor"]
     assert "own navigation" in FLIES_ON["onboard"] and "only watch" in FLIES_ON["onboard"]
+
+
+def test_a_false_alarm_is_flown_again_on_the_campaign_s_navigation():
+    from sim_bridge.report import false_alarm_markdown
+
+    y = {"false_alarm_list": [{"run": 3, "item": "baro", "t_s": 28.2, "s": 3.5}]}
+    doc = {"scenario": "real-actuators", "seed": 1}
+    assert "--seed 1 --first R" in false_alarm_markdown("RJMRPF", y, doc)[0]
+    onboard = false_alarm_markdown("RJMRPF", y, {**doc, "navigation": "onboard"})[0]
+    assert "false_alarm_runs.py real-actuators --seed 1 --navigation onboard --first R" in onboard
