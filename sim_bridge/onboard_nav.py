@@ -5,7 +5,12 @@
   estimate, so a monitor that loses the state upsets its aircraft, and the upset raises more alarms.
 - "onboard": the autopilot flies on its own navigation, as a stock ArduPilot or PX4 does next to
   this monitor (their EKF, not our estimate): the true state seen through the autopilot's primary
-  sensors, faults included, without their noise. The monitor then only watches.
+  sensors, faults included, without their noise. The monitor then only watches. A stuck gyro or
+  attitude sensor then takes the pitch loop's feedback and the aircraft upsets (as it would with
+  one IMU and no fault handling): a crash test rather than a test of the monitor.
+- "truth": the autopilot flies on the true state: a navigation that the faulty sensor does not
+  reach (redundant sensors, EKF lanes that switch away from a failing IMU, as ArduPilot's EKF3
+  and PX4's EKF2 run). The monitor only watches, and the flight is the same whatever it says.
 
 The onboard navigation is an autopilot EKF that follows its sensors and has no fault detection of
 its own: each injected sensor fault's additive-equivalent value (`sim_bridge.fault_types`: a bias's
@@ -19,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-NAVIGATION = ("monitor", "onboard")
+NAVIGATION = ("monitor", "onboard", "truth")
 """`[world.autopilot] navigation` values (module docstring)."""
 
 STATE_OF_ROW = {"baro_alt": (0, -1.0), "u": (1, 1.0), "w": (2, 1.0), "theta": (3, 1.0), "q": (4, 1.0)}
@@ -62,3 +67,19 @@ class OnboardNavigation:
         z = np.array(z, dtype=float)
         z[1] += self.airspeed @ f
         return z
+
+
+class TrueNavigation:
+    """The autopilot's navigation under navigation = "truth": the true state (module docstring)."""
+
+    def view(self, frame) -> np.ndarray:
+        """The true state (5,), u and w air-relative by the world's wind (`Frame.autopilot_view`)."""
+        return frame.autopilot_view(frame.z_true)
+
+
+def autopilot_navigation(navigation: str, faults) -> OnboardNavigation | TrueNavigation | None:
+    """The navigation the autopilot flies on for `[world.autopilot] navigation`, None for "monitor"
+    (it flies on the monitor's estimate); faults: the world's channels (`Scenario.faults`)."""
+    if navigation == "onboard":
+        return OnboardNavigation(faults)
+    return TrueNavigation() if navigation == "truth" else None

@@ -116,6 +116,8 @@ FLIES_ON = {
     "monitor": "every filter's autopilot flies on that filter's own estimate.",
     "onboard": "the autopilot flies on its own navigation, the filters only watch (navigation "
                "\"onboard\": the true state through its sensors' faults, sim_bridge/onboard_nav.py).",
+    "truth": "the autopilot flies on the true state, the filters only watch (navigation \"truth\": a "
+             "navigation the faulty sensor does not reach, sim_bridge/onboard_nav.py).",
 }
 """What a report says the autopilot flew on, by results.json's "navigation" (absent: "monitor")."""
 

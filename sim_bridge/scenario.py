@@ -174,7 +174,8 @@ class Scenario:
     """Wind, turbulence, airframe dispersion and the engine (all off in the thesis experiments)."""
     navigation: str = "monitor"
     """What the autopilot flies on (`[world.autopilot] navigation`, `sim_bridge.onboard_nav`):
-    "monitor", the monitor's own estimate (the thesis's closed loop), or "onboard", its own."""
+    "monitor", the monitor's own estimate (the thesis's closed loop), "onboard", its own through its
+    faulty sensors, or "truth", a navigation the faulty sensor does not reach."""
 
     @property
     def steps(self) -> int:
@@ -359,7 +360,7 @@ def _world(root: TomlTable) -> dict[str, Any]:
 
 
 def _navigation(w: TomlTable) -> str:
-    """`[world.autopilot] navigation`: "monitor" (default) or "onboard" (`sim_bridge.onboard_nav`)."""
+    """`[world.autopilot] navigation`: "monitor" (default), "onboard" or "truth" (`onboard_nav`)."""
     ap = w.sub("autopilot")
     navigation = ap.take("navigation", "string", "monitor", choices=NAVIGATION)
     ap.finish()

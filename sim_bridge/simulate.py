@@ -23,7 +23,7 @@ from fdir_service.airframe import AirframeParams, linearize, load_airframe
 from sim_bridge.autopilot import Autopilot
 from sim_bridge.fault_types import activity, is_typed
 from sim_bridge.faults import fault_vector, vary_profiles
-from sim_bridge.onboard_nav import OnboardNavigation
+from sim_bridge.onboard_nav import autopilot_navigation
 from sim_bridge.scenario import Scenario
 from sim_bridge.sensors import SensorSuite
 from sim_bridge.wind import ned_to_body
@@ -198,8 +198,8 @@ def run(scenario: Scenario, seed: int, seconds: float | None = None, nav: NavFn 
     """Fly the scenario in closed loop for `seconds` (default scenario.duration_s) at scenario.dt_s.
 
     nav(t, y, mask, u_prev) returns an object with `.state` (5,) or a (5,) array; None flies on
-    the truth. Under scenario.navigation = "onboard" the autopilot flies on its own navigation
-    (`onboard_nav`) whatever nav returns; nav still runs on every frame and is recorded.
+    the truth. Under scenario.navigation = "onboard" or "truth" the autopilot flies on its own
+    navigation (`onboard_nav`) whatever nav returns; nav still runs on every frame and is recorded.
     `autopilot` overrides the default design (tests use it for custom commands).
     """
     stepper = SimStepper(scenario, seed, airframe)
@@ -219,7 +219,7 @@ def run(scenario: Scenario, seed: int, seconds: float | None = None, nav: NavFn 
     gamma = np.empty(K)
     ps = np.empty(K)
     outputs: list = []
-    onboard = OnboardNavigation(scenario.faults) if scenario.navigation == "onboard" else None
+    onboard = autopilot_navigation(scenario.navigation, scenario.faults)
     for k in range(K):
         fr = stepper.frame()
         if nav is None:

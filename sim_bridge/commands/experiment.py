@@ -36,8 +36,9 @@ def add_parser(subparsers) -> None:
                    help="comma-separated subset of filters (default: the scenario's plus EKF-GATE)")
     p.add_argument("--navigation", choices=NAVIGATION, default=None,
                    help="what the autopilot flies on, overriding the world's [world.autopilot] navigation: "
-                   "'monitor' (the filter's own estimate, the thesis's closed loop) or 'onboard' (its own "
-                   "navigation, as a stock autopilot beside this monitor: docs/real-world.md)")
+                   "'monitor' (the filter's own estimate, the thesis's closed loop), 'onboard' (its own "
+                   "navigation through its faulty sensors) or 'truth' (a navigation the faulty sensor "
+                   "does not reach): docs/real-world.md")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--publish", metavar="DOCS", default=None,

@@ -142,3 +142,19 @@ def test_onboard_navigation_follows_its_faulty_barometer():
     sc = dataclasses.replace(_fault_free("ch5a", "nonlinear"), faults=(baro,), navigation="onboard")
     tr = run(sc, 3, seconds=40.0)
     assert -tr.z[-1, 0] == pytest.approx(490.0, abs=0.5)
+
+
+def test_truth_navigation_holds_its_altitude_under_a_faulty_barometer():
+    # navigation = "truth": the faulty sensor does not reach the autopilot; the monitor only watches
+    from sim_bridge.scenario import FaultChannel, ProfileComponent
+
+    baro = FaultChannel(id="baro", target="baro_alt", kind="sensor", unit="m",
+                        profile=(ProfileComponent("step", 0.0, 1e9, 10.0),))
+    sc = dataclasses.replace(_fault_free("ch5a", "nonlinear"), faults=(baro,), navigation="truth")
+
+    def lost(t, y, mask, u_prev):
+        return _Out(np.array([0.0, 5.0, -3.0, 1.0, 0.5]))
+
+    tr = run(sc, 3, seconds=40.0, nav=lost)
+    assert -tr.z[-1, 0] == pytest.approx(500.0, abs=0.5)
+    assert np.array_equal(tr.z, run(sc, 3, seconds=40.0).z)

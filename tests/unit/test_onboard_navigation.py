@@ -63,6 +63,7 @@ def test_a_world_asks_for_onboard_navigation_and_a_bad_value_names_the_key():
 def test_a_report_says_what_the_autopilot_flew_on():
     assert "own estimate" in FLIES_ON["monitor"]
     assert "own navigation" in FLIES_ON["onboard"] and "only watch" in FLIES_ON["onboard"]
+    assert "true state" in FLIES_ON["truth"] and "only watch" in FLIES_ON["truth"]
 
 
 def test_a_false_alarm_is_flown_again_on_the_campaign_s_navigation():
