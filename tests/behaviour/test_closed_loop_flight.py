@@ -133,12 +133,17 @@ def test_onboard_navigation_ignores_the_monitor():
     assert np.max(np.abs(monitored.z[:, 0] - watched.z[:, 0])) > 10.0   # on its estimate: upset
 
 
-def test_onboard_navigation_follows_its_faulty_barometer():
-    # A barometer reading 10 m high: an autopilot on its own navigation holds 500 m on it, 490 m true
+def _baro_reading_high(metres: float):
+    """A barometer bias of `metres` for the whole flight (a world fault channel)."""
     from sim_bridge.scenario import FaultChannel, ProfileComponent
 
-    baro = FaultChannel(id="baro", target="baro_alt", kind="sensor", unit="m",
-                        profile=(ProfileComponent("step", 0.0, 1e9, 10.0),))
+    return FaultChannel(id="baro", target="baro_alt", kind="sensor", unit="m",
+                        profile=(ProfileComponent("step", 0.0, 1e9, metres),))
+
+
+def test_onboard_navigation_follows_its_faulty_barometer():
+    # A barometer reading 10 m high: an autopilot on its own navigation holds 500 m on it, 490 m true
+    baro = _baro_reading_high(10.0)
     sc = dataclasses.replace(_fault_free("ch5a", "nonlinear"), faults=(baro,), navigation="onboard")
     tr = run(sc, 3, seconds=40.0)
     assert -tr.z[-1, 0] == pytest.approx(490.0, abs=0.5)
@@ -146,10 +151,7 @@ def test_onboard_navigation_follows_its_faulty_barometer():
 
 def test_truth_navigation_holds_its_altitude_under_a_faulty_barometer():
     # navigation = "truth": the faulty sensor does not reach the autopilot; the monitor only watches
-    from sim_bridge.scenario import FaultChannel, ProfileComponent
-
-    baro = FaultChannel(id="baro", target="baro_alt", kind="sensor", unit="m",
-                        profile=(ProfileComponent("step", 0.0, 1e9, 10.0),))
+    baro = _baro_reading_high(10.0)
     sc = dataclasses.replace(_fault_free("ch5a", "nonlinear"), faults=(baro,), navigation="truth")
 
     def lost(t, y, mask, u_prev):
