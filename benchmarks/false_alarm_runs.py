@@ -2,7 +2,7 @@
 false alarms per flight hour.
 
     python benchmarks/false_alarm_runs.py real-stuck [--runs 100] [--first 0] [--seed 0] [--workers 2]
-                                                     [--navigation monitor|onboard]
+                                                     [--navigation monitor|onboard|truth]
 
 Flies each run as `sim-bridge experiment` does (campaign seed --seed, default 0; RJMRPF),
 declares items as the service does (P(item) over its types, the declare hysteresis) and prints,
