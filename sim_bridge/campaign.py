@@ -2,7 +2,8 @@
 filter of a scenario, in parallel worker processes or on a dask.distributed cluster.
 
 A *job* is one (scenario, filter, run index): `sim_bridge.simulate.run` flies the scenario with the
-autopilot on that filter's own estimate (nav = filter.step), as in the thesis. Seeds come from
+autopilot on that filter's own estimate (nav = filter.step), as in the thesis, unless the scenario's
+navigation is "onboard" or "truth" (`onboard_nav`: the filter then only watches). Seeds come from
 `SeedSequence(seed)`: run r's simulator seed depends only on (seed, r), so the sensor noise of run
 r is the same for every filter; each filter's own random stream depends on (seed, r, filter name),
 so adding a filter changes nobody else's numbers.

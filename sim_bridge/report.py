@@ -122,6 +122,14 @@ FLIES_ON = {
 """What a report says the autopilot flew on, by results.json's "navigation" (absent: "monitor")."""
 
 
+def reading_notes_for(doc: dict) -> tuple[str, ...]:
+    """READING_NOTES for a campaign's results doc: the closed-loop note only when the autopilot flew
+    on the filters' estimates (navigation "monitor", or no record of it)."""
+    if doc.get("navigation", "monitor") == "monitor":
+        return READING_NOTES
+    return tuple(n for n in READING_NOTES if not n.startswith("Closed loop:"))
+
+
 def thesis_tables() -> dict:
     """The thesis's Tables 4.1-6.1 (thesis_tables.json): config/experiments/, else docs/results/."""
     here = Path(__file__).resolve().parent.parent
@@ -339,7 +347,7 @@ def markdown(  # noqa: C901 - report assembly: one section after another, each a
         if misses:
             L += ["", EXPLANATIONS_BASIS, ""] if explain else [""]
         if reading_notes:
-            L += ["Reading the tables:", ""] + [f"- {n}" for n in READING_NOTES] + [""]
+            L += ["Reading the tables:", ""] + [f"- {n}" for n in reading_notes_for(doc)] + [""]
     for name, fd in doc["filters"].items():
         th = th_all.get(name, th_all.get(name.removesuffix("-thesis"), {}))
         L += [f"## {name}", "", "RMSE, ours | thesis (ratio ours/thesis on the mean)", "",
@@ -744,9 +752,10 @@ def false_alarm_markdown(name: str, y: dict, doc: dict) -> list[str]:
 
 
 def _navigation_flag(doc: dict) -> str:
-    """The flag that flies a campaign's runs again on the autopilot's navigation ("" for the world's)."""
-    nav = doc.get("navigation", "monitor")
-    return "" if nav == "monitor" else f" --navigation {nav}"
+    """The flag that flies a campaign's runs again on its autopilot's navigation ("" for a results
+    doc written before it was recorded: those all flew on the monitor, the worlds' default)."""
+    nav = doc.get("navigation")
+    return "" if nav is None else f" --navigation {nav}"
 
 
 def _confusion_markdown(title: str, head: str, confusion: dict[str, dict[str, int]],

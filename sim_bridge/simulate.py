@@ -2,7 +2,9 @@
 
 Frame k at t_k = k dt: faults f_k = f(t_k) (profile values and activity); y_k = sensors(z_k, f_k);
 the navigation estimate is nav(t_k, y_k, mask_k, u_{k-1}) (a filter) or the truth z_k; u_k =
-autopilot(t_k, z_nav); the truth steps over [t_k, t_k+1) with u_k and the actuator faults f_k. What
+autopilot(t_k, z_nav), or, under scenario.navigation "onboard" | "truth", autopilot(t_k, the
+autopilot's own navigation) whatever nav says (`onboard_nav`); the truth steps over
+[t_k, t_k+1) with u_k and the actuator faults f_k. What
 each fault type does, and the additive-equivalent truth recorded: `sim_bridge.fault_types`.
 
 Randomness: `SeedSequence(seed).spawn(3)` -> [sensor noise, the world (turbulence, dispersion),
@@ -75,7 +77,8 @@ class Frame:
 class Trajectory:
     """A closed-loop run, K frames: t (K,), z (K, 5) truth, y (K, m), mask (K, m), u (K, 2)
     commanded input at each frame, faults (K, nf) the additive-equivalent truth (`fault_types`),
-    nav (K, 5) the state the autopilot flew on, gamma_cmd (K,) rad, static_pressure_pa (K,),
+    nav (K, 5) the navigation's state (what the autopilot flew on under navigation "monitor"),
+    gamma_cmd (K,) rad, static_pressure_pa (K,),
     outputs: what nav returned at each frame, active (K, nf) bool each fault's activity."""
 
     t: np.ndarray

@@ -71,6 +71,16 @@ def test_a_false_alarm_is_flown_again_on_the_campaign_s_navigation():
 
     y = {"false_alarm_list": [{"run": 3, "item": "baro", "t_s": 28.2, "s": 3.5}]}
     doc = {"scenario": "real-actuators", "seed": 1}
-    assert "--seed 1 --first R" in false_alarm_markdown("RJMRPF", y, doc)[0]
+    assert "--seed 1 --first R" in false_alarm_markdown("RJMRPF", y, doc)[0]      # before the record
+    monitor = false_alarm_markdown("RJMRPF", y, {**doc, "navigation": "monitor"})[0]
+    assert "--seed 1 --navigation monitor --first R" in monitor
     onboard = false_alarm_markdown("RJMRPF", y, {**doc, "navigation": "onboard"})[0]
     assert "false_alarm_runs.py real-actuators --seed 1 --navigation onboard --first R" in onboard
+
+
+def test_a_report_flown_off_the_monitor_drops_the_closed_loop_note():
+    from sim_bridge.report import READING_NOTES, reading_notes_for
+
+    assert reading_notes_for({}) == READING_NOTES == reading_notes_for({"navigation": "monitor"})
+    truth = reading_notes_for({"navigation": "truth"})
+    assert len(truth) == len(READING_NOTES) - 1 and not any(n.startswith("Closed loop") for n in truth)
