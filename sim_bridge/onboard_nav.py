@@ -63,8 +63,7 @@ class OnboardNavigation:
         """What the autopilot flies on at `frame` (`simulate.Frame`): its state (5,), u and w
         air-relative by the world's wind (`Frame.autopilot_view`), the pitot's faults on u."""
         f = np.nan_to_num(np.asarray(frame.faults, dtype=float))   # a jammed input's NaN: an actuator
-        z = frame.autopilot_view(frame.z_true + self.offset @ f)
-        z = np.array(z, dtype=float)
+        z = frame.autopilot_view(frame.z_true + self.offset @ f)   # a new array, ours to change
         z[1] += self.airspeed @ f
         return z
 
