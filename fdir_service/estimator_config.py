@@ -195,6 +195,9 @@ class FilterSettings:
     rate_window_s: float = 1.0           # the window of rate_sentinel = "window" (s)
     thrust_sigma: float = 0.01           # noise of the derived throttle row (0..1 throttle scale)
     q_tail: tuple[float, ...] = (0.0, 1.0)  # (share, scale): heavy-tailed pitch-rate process noise
+    q_noise: str = "fixed"               # the pitch-rate process noise: "fixed" (sigma_x[4]) | "learned"
+    #                                      (from the gyro; at most sigma_x[4]; pitch_noise.py)
+    q_noise_tau_s: float = 30.0          # s: the learning time constant of q_noise = "learned"
     wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.PitotRow) ...
     wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
@@ -443,7 +446,7 @@ _CHOICES = {
     "mode0": ("forced_zero", "reset_on_exit", "drift"), "sentinel_weighting": ("thesis", "prior"),
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
-    "held_value": ("sentinel", "mean"),
+    "held_value": ("sentinel", "mean"), "q_noise": ("fixed", "learned"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
@@ -469,6 +472,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         thrust_sigma=f.take("thrust_sigma", "number", d.thrust_sigma, check=POSITIVE),
         sentinel_clip=f.take("sentinel_clip", "number", d.sentinel_clip, check=NON_NEGATIVE),
         q_tail=tuple(f.take("q_tail", "numbers", d.q_tail, check=ALL_NON_NEGATIVE)),
+        q_noise_tau_s=f.take("q_noise_tau_s", "number", d.q_noise_tau_s, check=POSITIVE),
         wind_gust_sigma=f.take("wind_gust_sigma", "number", d.wind_gust_sigma, check=NON_NEGATIVE),
         wind_gust_tau_s=f.take("wind_gust_tau_s", "number", d.wind_gust_tau_s, check=POSITIVE),
         wind_mean_tau_s=f.take("wind_mean_tau_s", "number", d.wind_mean_tau_s, check=POSITIVE),
@@ -514,6 +518,19 @@ def _check_kinematic(settings: FilterSettings, faults: tuple[FaultSpec, ...],
                           f"airspeed")
 
 
+def _check_learned_noise(settings: FilterSettings, rows: tuple[str, ...]) -> None:
+    """parts.q_noise = "learned" learns from the pitching moment's residuals on the gyro's row: the
+    kinematic model with its airspeed (the moment) and q rows (`pitch_noise`)."""
+    if settings.q_noise != "learned":
+        return
+    missing = [r for r in ("airspeed", "q") if r not in rows]
+    if settings.process_model != "kinematic" or missing:
+        raise ConfigError(f"parts.q_noise = \"learned\" learns the pitching moment's misfit from the "
+                          f"gyro: expected process_model = \"kinematic\" and measurements.rows listing "
+                          f"airspeed and q; got process_model = \"{settings.process_model}\""
+                          + (f", missing {missing}" if missing else ""))
+
+
 def _check_engine(settings: FilterSettings, faults: tuple[FaultSpec, ...], rows: tuple[str, ...]) -> None:
     """An engine fault is seen in the throttle the accelerometer implies (`thrust.ThrustCheck`): the
     kinematic model with its ax, az and airspeed rows."""
@@ -557,6 +574,7 @@ def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> Estimat
     settings = _settings(root, faults)
     _check_prior(settings, faults)
     _check_kinematic(settings, faults, rows)
+    _check_learned_noise(settings, rows)
     _check_pitot(settings, faults, rows)
     _check_engine(settings, faults, rows)
     op = _operating_point(root)

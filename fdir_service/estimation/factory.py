@@ -54,6 +54,7 @@ from fdir_service.estimation.kinematic import KinematicProcess, PitchMoment
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.particle import ParticleFilter, Parts
+from fdir_service.estimation.pitch_noise import LearnedPitchNoise
 from fdir_service.estimation.pitot import wind_entry
 from fdir_service.estimation.predict import DriftPredict, GaussianPredict, ModeGatedPredict
 from fdir_service.estimation.process import LinearProcess, NonlinearProcess
@@ -382,7 +383,17 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
         resampler=resampler("systematic" if every else est.resampler),
         regulariser=_regulariser(rec, estimator, amp, _bandwidth(estimator, layout.n, N)),
     )
+    if est.q_noise == "learned":
+        parts.correction = _learned_noise(parts.correction, parts.predict, estimator, layout, meas, process)
     return (_typed(parts, estimator, layout, meas, N) if rec.has_modes else parts), amp
+
+
+def _learned_noise(correction, predict, estimator: EstimatorConfig, layout: FaultLayout,
+                   meas: MeasurementModel, process) -> LearnedPitchNoise:
+    """The correction wrapped to learn the predict's pitch-rate noise from the gyro (`pitch_noise`)."""
+    gyro = layout.measurements.index("q")
+    return LearnedPitchNoise(correction, predict.q_std, process.moment, gyro, float(meas.sigma[gyro]),
+                             estimator.dt_s, estimator.settings.q_noise_tau_s)
 
 
 def build_particle_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator,

@@ -1,0 +1,104 @@
+"""The pitch-rate process noise learnt from the gyro's own readings (parts.q_noise = "learned";
+docs/faults.md, "The pitch-rate noise the flight shows").
+
+The kinematic model predicts q through the pitching moment (`kinematic.PitchMoment`), and what the
+moment leaves unexplained is process noise, sigma_x[4] per sqrt(s). The configured value has to
+cover the worst air and airframe the estimator may meet (JSBSim's turbulence); on a better-modelled
+aircraft it is several times what the flight shows (real-catalogue-faultfree: the moment's one-frame
+error 0.49 deg/s rms, against 1.92 deg/s configured). A stuck-gyro hypothesis, which frees q from
+the gyro and predicts the next reading to be the held one within the gyro's noise, then gains the
+ratio of the two predictive widths, log(1.92 / 0.24) ~ 2 nats, every frame the reading happens to
+be steady: three such frames in ordinary flight made the stuck entry take the cloud (stop 42's
+eight false alarms in five fault-free hours on the truth).
+
+Here the noise is learnt from the data. Each frame with the gyro's reading and the last one, the
+one-frame residual of the moment model run from the last reading,
+
+    e_k = y_k - y_k-1 - dt q'(y_k-1, delta_e, a_z, V)          (the frame's inputs, as the predict)
+
+feeds a running mean m and variance v about it: the configured noise counts as PRIOR_FRAMES
+residuals, the average is plain until it spans tau_s, exponential (time constant tau_s) after
+(a trim misfit is the mean, the elevator's drift carries it). The predict's pitch-rate noise per step is then
+
+    sqrt(v - 2 sigma_r^2)    clipped to [FLOOR_SHARE, 1] x the configured sigma_x[4] sqrt(dt)
+
+(sigma_r: the gyro's assumed noise, twice for the two readings). So the configured value is an upper
+bound the data can only narrow. A residual further than WINSOR sigmas from m is clipped before it
+enters v, and nothing is learnt while the cloud holds any fault more probable than not (its
+residuals are the fault's, not the model's).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from fdir_service.estimation.frame import Frame
+    from fdir_service.estimation.kinematic import PitchMoment
+
+FLOOR_SHARE = 0.1
+"""The learnt pitch-rate noise never falls below this share of the configured one."""
+PRIOR_FRAMES = 20
+"""The configured pitch-rate noise weighs as much as this many residuals at the start."""
+WINSOR = 4.0
+"""A residual is clipped to this many standard deviations about the mean before it is learnt."""
+
+
+class LearnedPitchNoise:
+    """A correction wrapper (the inner's log-likelihoods unchanged) that learns the pitch-rate
+    process noise per step from the gyro row (module docstring) and sets it in `q_std` (n, 1), the
+    predict's per-step noise array, row 4.
+
+    moment: the process's pitch moment; gyro: the gyro's measurement row; sigma_r: its assumed
+    noise (rad/s); dt (s); tau_s: the learning time constant (s). The frame's input u holds
+    [delta_e, delta_t, a_x, a_z, V, ...] (`kinematic.KinematicProcess`).
+    """
+
+    def __init__(self, inner, q_std: np.ndarray, moment: PitchMoment, gyro: int, sigma_r: float,
+                 dt: float, tau_s: float) -> None:
+        self.inner = inner
+        self.q_std = q_std
+        self.moment = moment
+        self.gyro = int(gyro)
+        self.dt = float(dt)
+        self.top = float(q_std[4, 0])
+        self.noise_var = 2.0 * float(sigma_r) ** 2
+        self.alpha = min(1.0, self.dt / float(tau_s))
+        self.learnt = PRIOR_FRAMES
+        self.mean = 0.0
+        self.var = self.top ** 2 + self.noise_var       # start where the configured noise stands
+        self.last: float | None = None
+
+    def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
+        """The inner correction of X (n, N) in place; then learn from the frame (module docstring)."""
+        ll = self.inner.update(X, w, modes, frame)
+        if not frame.mask[self.gyro]:
+            self.last = None
+            return ll
+        y = float(frame.yv[frame.row_of[self.gyro]])
+        if self.last is not None and float(w @ modes.any(axis=0)) <= 0.5:
+            self._learn(y - self.last - self.dt * self._qdot(self.last, frame.u))
+        self.last = y
+        return ll
+
+    def _qdot(self, q: float, u: np.ndarray) -> float:
+        """The moment's q' (rad/s^2) at pitch rate q with the frame's inputs."""
+        return float(self.moment.qdot(np.array([q]), float(u[0]), float(u[3]), float(u[4]))[0])
+
+    def _learn(self, e: float) -> None:
+        """One residual e (rad/s) into the mean and variance, then the predict's noise."""
+        sd = np.sqrt(self.var)
+        d = min(max(e - self.mean, -WINSOR * sd), WINSOR * sd)
+        self.learnt += 1
+        a = max(self.alpha, 1.0 / self.learnt)
+        self.mean += a * d
+        self.var += a * (d * d - self.var)
+        model = np.sqrt(max(self.var - self.noise_var, 0.0))
+        self.q_std[4, 0] = min(max(model, FLOOR_SHARE * self.top), self.top)
+
+    @property
+    def sigma(self) -> float:
+        """The pitch-rate process noise per step now (rad/s)."""
+        return float(self.q_std[4, 0])
