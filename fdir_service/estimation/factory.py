@@ -392,7 +392,7 @@ def _learned_noise(correction, predict, estimator: EstimatorConfig, layout: Faul
                    meas: MeasurementModel, process) -> LearnedPitchNoise:
     """The correction wrapped to learn the predict's pitch-rate noise from the gyro (`pitch_noise`)."""
     gyro = layout.measurements.index("q")
-    return LearnedPitchNoise(correction, predict.q_std, process.moment, gyro, float(meas.sigma[gyro]),
+    return LearnedPitchNoise(correction, predict, process.moment, gyro, float(meas.sigma[gyro]),
                              estimator.dt_s, estimator.settings.q_noise_tau_s)
 
 
