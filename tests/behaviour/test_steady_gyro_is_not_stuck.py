@@ -1,5 +1,5 @@
 """A gyro that reads steady for a few frames in ordinary flight is not a stuck gyro: the catalogue
-estimator, its pitch-rate noise learnt from the flight (parts.q_noise = "learned",
+estimator, its pitch-rate noise learnt from the flight (parts.q_noise = "learned", not yet its default;
 fdir_service/estimation/pitch_noise.py), raises nothing in the first 40 s of real-catalogue-faultfree
 run 4 (campaign seed 0, the autopilot on the truth), where with the configured noise fixed the
 gyro's stuck entry took the cloud in the steady pitch at 37 s and the gyro was declared
