@@ -20,7 +20,7 @@ feeds a running mean m and variance v about it: the configured noise counts as P
 residuals, the average is plain until it spans tau_s, exponential (time constant tau_s) after
 (a trim misfit is the mean, the elevator's drift carries it). The predict's pitch-rate noise per step is then
 
-    sqrt(v - 2 sigma_r^2)    clipped to [FLOOR_SHARE, 1] x the configured sigma_x[4] sqrt(dt)
+    sqrt(v - 2 sigma_r^2)    clipped to [FLOOR_SHARE, 1] x the configured per-step noise of q
 
 (sigma_r: the gyro's assumed noise, twice for the two readings). So the configured value is an upper
 bound the data can only narrow. The heavy tail (parts.q_tail: a share of the particles with its
@@ -31,8 +31,10 @@ faults against 83 (stop 43); with the tail kept, 105. So no estimator in config/
 (docs/faults.md, "The pitch-rate noise the flight shows").
 
 A residual further than WINSOR sigmas from m is clipped before it enters v, and nothing is learnt
-while the cloud holds any fault more probable than not (its residuals are the fault's, not the
-model's).
+while the probability that some fault is active exceeds 0.5 (the prior weights over the frame's
+modes after its jump; its residuals are the fault's, not the model's). The residual takes the
+trusted airspeed reading and the elevator command, where a particle's predict may take its own
+airspeed and elevator fault entries.
 """
 
 from __future__ import annotations
@@ -89,8 +91,13 @@ class LearnedPitchNoise:
             self.last = None
             return ll
         y = float(frame.yv[frame.row_of[self.gyro]])
+        if not np.isfinite(y):                       # a bad reading is a missing one
+            self.last = None
+            return ll
         if self.last is not None and float(w @ modes.any(axis=0)) <= 0.5:
-            self._learn(y - self.last - self.dt * self._qdot(self.last, frame.u))
+            e = y - self.last - self.dt * self._qdot(self.last, frame.u)
+            if np.isfinite(e):
+                self._learn(e)
         self.last = y
         return ll
 
@@ -108,7 +115,7 @@ class LearnedPitchNoise:
         self.var += a * (d * d - self.var)
         model = np.sqrt(max(self.var - self.noise_var, 0.0))
         sigma = self.q_std[4, 0] = min(max(model, FLOOR_SHARE * self.top), self.top)
-        if self.tail is not None:
+        if self.tail is not None and sigma > 0.0:
             self.predict.q_tail = (self.tail[0], self.tail[1] * self.top / sigma)
 
     @property

@@ -91,6 +91,15 @@ def test_no_residual_spans_a_missing_reading():
     assert part.sigma == TOP
 
 
+def test_a_non_finite_reading_is_skipped_not_learnt():
+    part = learner()
+    fly(part, np.radians(0.5), frames=500)
+    X, w, modes = np.zeros((N_AIRFRAME + 1, 4)), np.full(4, 0.25), np.zeros((1, 4), bool)
+    for y in (np.nan, 0.01, np.inf, 0.02):
+        part.update(X, w, modes, Frame.of(30.0, np.array([0.05, y]), np.array([True, True]), U, MEAS))
+    assert np.isfinite(part.sigma) and np.isfinite(part.var) and part.last == 0.02
+
+
 def test_one_wild_residual_moves_the_noise_by_a_bounded_step():
     part = learner()
     fly(part, np.radians(0.5), frames=2000)
