@@ -14,11 +14,12 @@ eight false alarms in five fault-free hours on the truth).
 Here the noise is learnt from the data. Each frame with the gyro's reading and the last one, the
 one-frame residual of the moment model run from the last reading,
 
-    e_k = y_k - y_k-1 - dt q'(y_k-1, delta_e, a_z, V)          (the frame's inputs, as the predict)
+    e_k = y_k - y_k-1 - dt q'(y_k-1, delta_e, a_z, V)          (the frame's inputs u)
 
-feeds a running mean m and variance v about it: the configured noise counts as PRIOR_FRAMES
-residuals, the average is plain until it spans tau_s, exponential (time constant tau_s) after
-(a trim misfit is the mean, the elevator's drift carries it). The predict's pitch-rate noise per step is then
+feeds a running mean m and variance v about it, gain max(dt / tau_s, 1 / n) with the configured
+noise counted as the first PRIOR_FRAMES of the n residuals: a plain average at first, exponential
+(time constant tau_s) once 1 / n < dt / tau_s (a trim misfit is the mean, the elevator's drift
+carries it). The predict's pitch-rate noise per step is then
 
     sqrt(v - 2 sigma_r^2)    clipped to [FLOOR_SHARE, 1] x the configured per-step noise of q
 
