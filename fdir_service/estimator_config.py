@@ -198,6 +198,8 @@ class FilterSettings:
     q_noise: str = "fixed"               # the pitch-rate process noise: "fixed" (sigma_x[4]) | "learned"
     #                                      (from the gyro; at most sigma_x[4]; pitch_noise.py)
     q_noise_tau_s: float = 30.0          # s: the learning time constant of q_noise = "learned"
+    az_input: str = "frame_end"          # the a_z the kinematic model integrates: "frame_end" (the
+    #                                      frame's reading) | "frame_mean" (its two readings' mean)
     wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.PitotRow) ...
     wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
@@ -447,6 +449,7 @@ _CHOICES = {
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
     "held_value": ("sentinel", "mean"), "q_noise": ("fixed", "learned"),
+    "az_input": ("frame_end", "frame_mean"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
@@ -531,6 +534,14 @@ def _check_learned_noise(settings: FilterSettings, rows: tuple[str, ...]) -> Non
                           + (f", missing {missing}" if missing else ""))
 
 
+def _check_az_input(settings: FilterSettings) -> None:
+    """parts.az_input = "frame_mean" pairs the accelerometer the kinematic model integrates."""
+    if settings.az_input != "frame_end" and settings.process_model != "kinematic":
+        raise ConfigError(f"parts.az_input = \"{settings.az_input}\" pairs the accelerometer the "
+                          f"kinematic model integrates: expected process_model = \"kinematic\"; got "
+                          f"\"{settings.process_model}\"")
+
+
 def _check_engine(settings: FilterSettings, faults: tuple[FaultSpec, ...], rows: tuple[str, ...]) -> None:
     """An engine fault is seen in the throttle the accelerometer implies (`thrust.ThrustCheck`): the
     kinematic model with its ax, az and airspeed rows."""
@@ -575,6 +586,7 @@ def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> Estimat
     _check_prior(settings, faults)
     _check_kinematic(settings, faults, rows)
     _check_learned_noise(settings, rows)
+    _check_az_input(settings)
     _check_pitot(settings, faults, rows)
     _check_engine(settings, faults, rows)
     op = _operating_point(root)
