@@ -47,16 +47,19 @@ def learner() -> LearnedPitchNoise:
 def fly(part: LearnedPitchNoise, misfit: float, frames: int = 4000, seed: int = 0,
         modes: np.ndarray | None = None, gyro_every: int = 1) -> None:
     """Feed `frames` gyro readings of a pitch rate the moment drives plus `misfit` (rad/s a frame,
-    white), read with the gyro's true noise 0.002 rad/s; modes (1, N) the cloud's fault modes."""
+    white), read with the gyro's true noise 0.002 rad/s; modes (1, N) the cloud's fault modes. The
+    elevator swings +-2 deg at 0.5 Hz about U's, so the moment's elevator term moves q by ~20 deg/s."""
     rng = np.random.default_rng(seed)
     X, w = np.zeros((N_AIRFRAME + 1, 4)), np.full(4, 0.25)
     modes = np.zeros((1, 4), bool) if modes is None else modes
     q = 0.0
     for k in range(frames):
-        q += DT * MOMENT.qdot(np.array([q]), U[0], U[3], U[4])[0] + misfit * rng.standard_normal()
+        u = U.copy()
+        u[0] += np.radians(2.0) * np.sin(np.pi * k * DT)
+        q += DT * MOMENT.qdot(np.array([q]), u[0], u[3], u[4])[0] + misfit * rng.standard_normal()
         mask = np.array([True, k % gyro_every == 0])
         y = np.array([0.05, q + 0.002 * rng.standard_normal()])
-        part.update(X, w, modes, Frame.of(k * DT, y, mask, U, MEAS))
+        part.update(X, w, modes, Frame.of(k * DT, y, mask, u, MEAS))
 
 
 @pytest.mark.parametrize("misfit_deg", [0.3, 0.7, 1.2])
@@ -78,10 +81,13 @@ def test_the_learnt_noise_stays_within_its_floor_and_the_configured_noise():
     assert still.sigma == pytest.approx(FLOOR_SHARE * TOP)
 
 
-def test_nothing_is_learnt_while_a_fault_is_believed():
+def test_nothing_is_learnt_while_a_fault_is_more_probable_than_not():
     part = learner()
     fly(part, np.radians(0.3), modes=np.array([[True, True, True, False]]))    # P(fault) = 0.75
     assert part.sigma == TOP
+    part = learner()
+    fly(part, np.radians(0.3), frames=1500, modes=np.array([[True, False, False, False]]))  # 0.25
+    assert part.sigma < 0.5 * TOP
 
 
 def test_no_residual_spans_a_missing_reading():
