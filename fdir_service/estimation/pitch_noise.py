@@ -31,9 +31,14 @@ nothing. Learnt with the tail narrowed too, real-actuators raised 111 false alar
 faults against 83 (stop 43); with the tail kept, 105. So no estimator in config/ learns it yet
 (docs/faults.md, "The pitch-rate noise the flight shows").
 
-A residual further than WINSOR sigmas from m is clipped before it enters v, and nothing is learnt
-while the probability that some fault is active exceeds 0.5 (the prior weights over the frame's
-modes after its jump; its residuals are the fault's, not the model's). The residual takes the
+A residual further than WINSOR sigmas from m is clipped before it enters v. While the probability
+that some fault is active exceeds 0.5 (the prior weights over the frame's modes after its jump)
+nothing is learnt, its residuals being the fault's, not the model's, and the predict takes the
+configured noise back: under a fault the moment's inputs may be wrong in ways no entry carries
+(a pitot fault's airspeed, the transients after a surface frees), and with the learnt noise the
+elevator took the blame for them (real-pitot run 2: the elevator declared at 27.0 s, 9.5 s into a
+pitot step; none with the configured noise back; docs/faults.md, "The accelerometer over the
+frame"). The residual takes the
 trusted airspeed reading and the elevator command, where a particle's predict may take its own
 airspeed and elevator fault entries.
 """
@@ -84,6 +89,8 @@ class LearnedPitchNoise:
         self.mean = 0.0
         self.var = self.top ** 2 + self.noise_var       # start where the configured noise stands
         self.last: float | None = None
+        self.learnt_sigma = self.top
+        """The learnt noise per step (rad/s): the predict's while no fault is believed."""
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         """The inner correction of X (n, N) in place; then learn from the frame (module docstring)."""
@@ -95,10 +102,12 @@ class LearnedPitchNoise:
         if not np.isfinite(y):                       # a bad reading is a missing one
             self.last = None
             return ll
-        if self.last is not None and float(w @ modes.any(axis=0)) <= 0.5:
+        quiet = float(w @ modes.any(axis=0)) <= 0.5
+        if self.last is not None and quiet:
             e = y - self.last - self.dt * self._qdot(self.last, frame.u)
             if np.isfinite(e):
                 self._learn(e)
+        self._set(self.learnt_sigma if quiet else self.top)
         self.last = y
         return ll
 
@@ -115,7 +124,11 @@ class LearnedPitchNoise:
         self.mean += a * d
         self.var += a * (d * d - self.var)
         model = np.sqrt(max(self.var - self.noise_var, 0.0))
-        sigma = self.q_std[4, 0] = min(max(model, FLOOR_SHARE * self.top), self.top)
+        self.learnt_sigma = min(max(model, FLOOR_SHARE * self.top), self.top)
+
+    def _set(self, sigma: float) -> None:
+        """The predict's pitch-rate noise per step (rad/s), its tail kept at the configured width."""
+        self.q_std[4, 0] = sigma
         if self.tail is not None and sigma > 0.0:
             self.predict.q_tail = (self.tail[0], self.tail[1] * self.top / sigma)
 

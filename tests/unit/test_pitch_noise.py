@@ -90,6 +90,17 @@ def test_nothing_is_learnt_while_a_fault_is_more_probable_than_not():
     assert part.sigma < 0.5 * TOP
 
 
+def test_while_a_fault_is_believed_the_predict_takes_the_configured_noise_back():
+    part = learner()
+    fly(part, np.radians(0.3), frames=1500)
+    learnt = part.sigma
+    assert learnt < 0.5 * TOP
+    fly(part, np.radians(0.3), frames=3, modes=np.array([[True, True, True, False]]))
+    assert part.sigma == TOP and part.predict.q_tail == (0.05, 5.0) and part.learnt_sigma == learnt
+    fly(part, np.radians(0.3), frames=1)
+    assert part.sigma == pytest.approx(learnt, rel=0.05)
+
+
 def test_no_residual_spans_a_missing_reading():
     """Every other frame without the gyro: no two consecutive readings, so nothing is learnt."""
     part = learner()
@@ -109,9 +120,9 @@ def test_a_non_finite_reading_is_skipped_not_learnt():
 def test_one_wild_residual_moves_the_noise_by_a_bounded_step():
     part = learner()
     fly(part, np.radians(0.5), frames=2000)
-    before = part.sigma
+    before = part.learnt_sigma
     part._learn(1.0)                                     # 1 rad/s in one frame
-    assert before < part.sigma < 1.02 * before
+    assert before < part.learnt_sigma < 1.02 * before
 
 
 def test_an_estimator_learns_its_pitch_noise_only_when_it_asks():
@@ -124,9 +135,9 @@ def test_an_estimator_learns_its_pitch_noise_only_when_it_asks():
         return isinstance(part, LearnedPitchNoise)
 
     doc, _ = estimator_document("aerosonde-catalogue")
-    assert not learns(doc)
-    doc["parts"]["q_noise"] = "learned"
-    assert learns(doc)
+    assert learns(doc)                                   # the catalogue's own setting
+    doc["parts"].pop("q_noise")
+    assert not learns(doc)                               # the default: "fixed"
 
 
 def test_learning_needs_the_kinematic_moment():
