@@ -15,8 +15,8 @@ The process integrates a frame from its start to its end; each input is the read
 (the throttle's step shows in a_x at once). With parts.az_input = "frame_mean" a_z is instead the
 mean of the frame's two readings: a_z follows the short-period motion within the frame, and the
 pitching moment reads the angle of attack from it. On the catalogue's fault-free flight the
-moment's one-frame miss of the gyro is then 0.52 instead of 0.70 deg/s rms, and w's 0.022 instead
-of 0.030 m/s (`benchmarks/moment_residuals.py`; docs/faults.md, "The accelerometer over the frame").
+moment's one-frame miss of the gyro is then 0.52 instead of 0.70 deg/s rms, and w's 0.023 instead
+of 0.032 m/s (`benchmarks/moment_residuals.py`; docs/faults.md, "The accelerometer over the frame").
 """
 
 from __future__ import annotations
