@@ -28,8 +28,10 @@ bound the data can only narrow. The heavy tail (parts.q_tail: a share of the par
 scale x the noise) keeps the configured noise times its scale: it stands for the pitch
 accelerations no moment foresees (an upset, a surface that snaps free), of which quiet frames say
 nothing. Learnt with the tail narrowed too, real-actuators raised 111 false alarms after its
-faults against 83 (stop 43); with the tail kept, 105. So no estimator in config/ learns it yet
-(docs/faults.md, "The pitch-rate noise the flight shows").
+faults against 83 (stop 43); with the tail kept, 105. With the moment reading a_z over the frame
+(parts.az_input = "frame_mean") and the configured noise back under a fault (below), 77: the
+catalogue learns it since stop 44 (docs/faults.md, "The pitch-rate noise the flight shows", "The
+accelerometer over the frame").
 
 A residual further than WINSOR sigmas from m is clipped before it enters v. While the probability
 that some fault is active exceeds 0.5 (the prior weights over the frame's modes after its jump)
@@ -38,9 +40,8 @@ configured noise back: under a fault the moment's inputs may be wrong in ways no
 (a pitot fault's airspeed, the transients after a surface frees), and with the learnt noise the
 elevator took the blame for them (real-pitot run 2: the elevator declared at 27.0 s, 9.5 s into a
 pitot step; none with the configured noise back; docs/faults.md, "The accelerometer over the
-frame"). The residual takes the
-trusted airspeed reading and the elevator command, where a particle's predict may take its own
-airspeed and elevator fault entries.
+frame"). The residual takes the trusted airspeed reading and the elevator command, where a
+particle's predict may take its own airspeed and elevator fault entries.
 """
 
 from __future__ import annotations
