@@ -200,6 +200,8 @@ class FilterSettings:
     q_noise_tau_s: float = 30.0          # s: the learning time constant of q_noise = "learned"
     az_input: str = "frame_end"          # the a_z the kinematic model integrates: "frame_end" (the
     #                                      frame's reading) | "frame_mean" (its two readings' mean)
+    velocity_step: str = "euler"         # the kinematic model's body velocity: "euler" (u - q w dt) |
+    #                                      "rotation" (turned by the frame's pitch angle exactly)
     wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.PitotRow) ...
     wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
@@ -449,7 +451,7 @@ _CHOICES = {
     "jitter": ("global", "per_mode"), "adaptive_transition": ("thesis", "proposal"),
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
     "held_value": ("sentinel", "mean"), "q_noise": ("fixed", "learned"),
-    "az_input": ("frame_end", "frame_mean"),
+    "az_input": ("frame_end", "frame_mean"), "velocity_step": ("euler", "rotation"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
@@ -534,12 +536,18 @@ def _check_learned_noise(settings: FilterSettings, rows: tuple[str, ...]) -> Non
                           + (f", missing {missing}" if missing else ""))
 
 
-def _check_az_input(settings: FilterSettings) -> None:
-    """parts.az_input = "frame_mean" pairs the accelerometer the kinematic model integrates."""
-    if settings.az_input != "frame_end" and settings.process_model != "kinematic":
-        raise ConfigError(f"parts.az_input = \"{settings.az_input}\" pairs the accelerometer the "
-                          f"kinematic model integrates: expected process_model = \"kinematic\"; got "
-                          f"\"{settings.process_model}\"")
+KINEMATIC_PARTS = {"az_input": "pairs the accelerometer the kinematic model integrates",
+                   "velocity_step": "is the kinematic model's body-velocity step"}
+"""[parts] settings only the kinematic model has (their first value is every model's default)."""
+
+
+def _check_kinematic_parts(settings: FilterSettings) -> None:
+    """parts.az_input and parts.velocity_step other than their defaults need the kinematic model."""
+    for key, what in KINEMATIC_PARTS.items():
+        value = getattr(settings, key)
+        if value != _CHOICES[key][0] and settings.process_model != "kinematic":
+            raise ConfigError(f"parts.{key} = \"{value}\" {what}: expected process_model = "
+                              f"\"kinematic\"; got \"{settings.process_model}\"")
 
 
 def _check_engine(settings: FilterSettings, faults: tuple[FaultSpec, ...], rows: tuple[str, ...]) -> None:
@@ -586,7 +594,7 @@ def parse_estimator(doc: dict[str, Any], source: str = "<estimator>") -> Estimat
     _check_prior(settings, faults)
     _check_kinematic(settings, faults, rows)
     _check_learned_noise(settings, rows)
-    _check_az_input(settings)
+    _check_kinematic_parts(settings)
     _check_pitot(settings, faults, rows)
     _check_engine(settings, faults, rows)
     op = _operating_point(root)

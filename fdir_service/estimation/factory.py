@@ -164,7 +164,8 @@ def _process(estimator: EstimatorConfig, layout: FaultLayout):
         moment = PitchMoment(_airframe(estimator.airframe)) if "airspeed" in estimator.measurements else None
         return KinematicProcess(estimator.dt_s, layout, moment, estimator.operating_point.airspeed_mps,
                                 _input_positions(estimator, LATERAL_ROWS),
-                                _input_positions(estimator, BODY_RATE_ROWS))
+                                _input_positions(estimator, BODY_RATE_ROWS),
+                                rotation=estimator.settings.velocity_step == "rotation")
     lm = estimator_linear_model(estimator)
     if estimator.settings.process_model == "linear":
         return LinearProcess(lm, layout)
