@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fdir_service.errors import ConfigError
 from fdir_service.estimation.factory import trim_state
 from fdir_service.estimation.inputs import RowSplit, trim_inputs
 from fdir_service.estimator_config import estimator_document, parse_estimator
@@ -62,13 +61,3 @@ def test_the_other_inputs_and_the_throttle_row_keep_the_frames_own_reading():
         assert np.array_equal(np.delete(u_end, 3), np.delete(u_mean, 3))
         assert np.array_equal(y_end, y_mean)                     # the implied throttle: a_z at the end
 
-
-def test_only_the_kinematic_model_takes_the_mean_and_a_bad_value_names_the_key():
-    doc, _ = estimator_document("aerosonde")
-    doc.setdefault("parts", {})["az_input"] = "frame_mean"
-    with pytest.raises(ConfigError, match="parts.az_input"):
-        parse_estimator(doc, "test.toml")
-    doc, _ = estimator_document("aerosonde-catalogue")
-    doc["parts"]["az_input"] = "frame_start"
-    with pytest.raises(ConfigError, match="az_input"):
-        parse_estimator(doc, "test.toml")
