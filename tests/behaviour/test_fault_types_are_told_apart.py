@@ -169,15 +169,14 @@ def test_a_barometer_whose_noise_triples_is_declared_noisy_with_its_k(climb):
 
 def test_an_attitude_ramp_is_named_a_drift_and_nothing_else(climb):
     """A 0.5 deg/s attitude ramp (either sign, 4 filter seeds) is declared within 9 s and never named
-    another type; it is named a drift within 10 s in at least 5 of the 8 (6 to stop 43). With the
-    drift handing over to the bias and the stuck entries at 0.01 a step, as often as they hand over
-    to it, the pair kept about half of P(theta) and the drift was named on 3 of these 8
-    (docs/faults.md, "Hand-overs out of a drift"). Now 7 of 8 within 8 s on the machine CI ran on to
-    stop 37; on an AMD EPYC (AVX2) 6 of 8 within 8 s and 7 within 10 s with two BLAS threads, 7 of 8
-    within 8 s with one; the rest stay "type unclear". Since the catalogue learns its pitch-rate
-    noise and integrates the frame's mean a_z (stop 44), in a script on this machine: all 8 declared
-    within 3.4-4.9 s, 7 of 8 named a drift within 10 s; 5 of 8 under pytest (the floating point's
-    last bits again); asserted: at least 5."""
+    another type; it is named a drift within 10 s in at least 6 of the 8. With the drift handing over
+    to the bias and the stuck entries at 0.01 a step, as often as they hand over to it, the pair kept
+    about half of P(theta) and the drift was named on 3 of these 8 (docs/faults.md, "Hand-overs out
+    of a drift"). Since then 6-7 of 8 within 8-10 s on the machines measured. Until stop 45 this
+    test did not count a name that followed "type unclear" (its text ends "(was unclear)"), and read
+    4-5 of 8 where the service named 7: the last-bits explanation given then was wrong. Now (the
+    catalogue of stop 45): all 8 declared within 3.75-5.15 s, 7 named a drift within 7.3 s (3 after
+    "type unclear"), the eighth (+0.5 deg/s, seed 4) unclear throughout."""
     sc, tr, y, mask = climb
     j = sc.estimator.measurements.index("theta")
     on = during(tr.t)
@@ -188,7 +187,7 @@ def test_an_attitude_ramp_is_named_a_drift_and_nothing_else(climb):
         texts = [(t, s) for t, s in service_texts(sc, tr, ramp, mask, outputs(sc, tr, ramp, mask, seed), 0.8)
                  if s.startswith("FDIR theta ") and "cleared" not in s]
         assert texts and texts[0][0] < ONSET_S + 9.0, (rate, seed, texts)
-        kinds = [s for _, s in texts if "unclear" not in s]
+        kinds = [s for _, s in texts if "type unclear" not in s]
         assert all(s.startswith("FDIR theta drift") for s in kinds), (rate, seed, texts)
-        named += bool(kinds) and min(t for t, s in texts if "unclear" not in s) < ONSET_S + 10.0
-    assert named >= 5
+        named += bool(kinds) and min(t for t, s in texts if "type unclear" not in s) < ONSET_S + 10.0
+    assert named >= 6
