@@ -33,7 +33,12 @@ u, w are the body-axis velocities over the ground (what GNSS-aided ODOMETRY repo
 gusts appear only through the measured specific force: this model has nothing to mis-model in
 moving air or on another airframe. One step over dt with the attitude at mid-step
 (theta + q dt / 2) in the gravity and climb terms; once the gyro has corrected the frame's pitch
-rate, theta takes the trapezoid of the two rates (`close_frame`).
+rate, theta takes the trapezoid of the two rates (`close_frame`). With parts.velocity_step = "rotation"
+(`_velocity_step`) the body velocity (u, w) turns by the frame's pitch angle q dt exactly instead
+of the Euler step, and at `close_frame` by the trapezoid's extra angle as theta does: the same to
+1.5 mm/s a frame in steady flight, but when a jammed elevator frees and the aircraft pitches at
+200 deg/s the Euler step lost 3-4 m/s of u and w within a second (docs/faults.md, "The body
+velocity turned exactly").
 
 An elevator acts on q only through the pitching moment. With a `PitchMoment` the q row becomes
 

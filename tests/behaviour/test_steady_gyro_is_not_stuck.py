@@ -3,9 +3,10 @@ estimator, its pitch-rate noise learnt from the flight (parts.q_noise = "learned
 fdir_service/estimation/pitch_noise.py) and its moment reading the angle of attack from the frame's
 mean a_z (parts.az_input = "frame_mean"), raises nothing in the first 195 s of
 real-catalogue-faultfree run 21 (campaign seed 0, the autopilot on the truth), where the build
-before them (the configured noise, the frame's last a_z; the Euler velocity step) let the gyro's stuck entry take the cloud
-in a steady pitch and declared the gyro at 192.0 s (stop 42's false alarms; docs/faults.md, "The
-pitch-rate noise the flight shows")."""
+before them (the configured noise, the frame's last a_z; and the Euler velocity step, which came
+before the rotation of stop 45) let the gyro's stuck entry take the cloud in a steady pitch and
+declared the gyro at 192.0 s (stop 42's false alarms; docs/faults.md, "The pitch-rate noise the
+flight shows")."""
 
 from __future__ import annotations
 
