@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fdir_service.estimation.pitot import PitotRow, pitot_row
+from fdir_service.estimation.pitot import PitotRow, near_level_flight, pitot_row
 from fdir_service.estimation.thrust import ThrustCheck
 from fdir_service.estimator_config import AIRSPEED_ROW, INPUT_ROWS, THRUST_ROW, EstimatorConfig
 
@@ -66,8 +66,8 @@ class RowSplit:
         """A `pitot.PitotRow` when the airspeed is also an observed row (`AIRSPEED_ROW`): the pitching
         moment and the thrust check then take it less its estimated fault."""
         self.attitude = attitude
-        """The attitude and pitch-rate rows among the estimator's rows (-1: none): the pitot is read
-        near level flight only (`pitot.PitotRow.readable`)."""
+        """The attitude and pitch-rate rows among the estimator's rows (-1: none): the pitot and the
+        derived throttle row are read near level flight only (`pitot.near_level_flight`)."""
         self.az_mean = az_mean
         """a_z's position in the held inputs when the process takes the frame's mean (-1: its end)."""
         self._az_start = float(self.hold[az_mean]) if az_mean >= 0 else 0.0
@@ -102,14 +102,15 @@ class RowSplit:
             self.pitot.command(float(u[1]))
             held = held.copy()
             held[2] = self.pitot.trusted(held[2])
+        theta, q = (float(y[j]) if j >= 0 and mask[j] else None for j in self.attitude)
+        level = near_level_flight(theta, q)     # both derived rows hold near level flight only
         if self.thrust is not None:             # the derived throttle row
             ax, az, V = held[:3]
             y_obs = np.append(y_obs, self.thrust.implied_throttle(ax, az, V, u[0]) - u[1])
-            mask_obs = np.append(mask_obs, bool(fresh[0]))
+            mask_obs = np.append(mask_obs, bool(fresh[0]) and level)
         if self.pitot is not None:              # the derived airspeed row: the pitot's own reading
-            theta, q = (float(y[j]) if j >= 0 and mask[j] else None for j in self.attitude)
             y_obs = np.append(y_obs, self.hold[2])
-            mask_obs = np.append(mask_obs, bool(fresh[2]) and self.pitot.readable(theta, q))
+            mask_obs = np.append(mask_obs, bool(fresh[2]) and level)
         if self.imu_as_input:
             u = np.concatenate([u, self._frame_inputs(held)])
         return y_obs, mask_obs, u

@@ -58,11 +58,19 @@ PITOT_MAX_PITCH_RAD = math.radians(25.0)
 PITOT_MAX_RATE_RADPS = math.radians(15.0)
 """Beyond this pitch attitude (rad) or pitch rate (rad/s) the pitot is not read: V ~ u + W holds near
 level flight, and in an upset the head wind's share along body x (W_N cos theta) and the vertical
-velocity's share of V change faster than any gust, so the row would blame the pitot for the attitude."""
+velocity's share of V change faster than any gust, so the row would blame the pitot for the attitude.
+The derived throttle row (`thrust.ThrustCheck`: linear lift, a parabolic polar) is read within the
+same limits (`near_level_flight`, `inputs.RowSplit`)."""
 
 
 def _within(value: float | None, limit: float) -> bool:
     return value is None or not math.isfinite(value) or abs(value) <= limit
+
+
+def near_level_flight(theta: float | None, q: float | None) -> bool:
+    """True at a pitch attitude theta (rad) and pitch rate q (rad/s) where the pitot and the thrust
+    check may be read (None or not finite: not measured, no limit)."""
+    return _within(theta, PITOT_MAX_PITCH_RAD) and _within(q, PITOT_MAX_RATE_RADPS)
 
 
 def wind_entry(faults) -> int:
@@ -124,7 +132,7 @@ class PitotRow:
     def readable(self, theta: float | None, q: float | None) -> bool:
         """True when the pitot row may be read at the attitude theta (rad) and pitch rate q (rad/s)
         (None or not finite: not measured, no limit)."""
-        return _within(theta, PITOT_MAX_PITCH_RAD) and _within(q, PITOT_MAX_RATE_RADPS)
+        return near_level_flight(theta, q)
 
     def command(self, throttle: float) -> None:
         """This frame's throttle command (0..1, NaN: unknown): whether the autopilot can hold the

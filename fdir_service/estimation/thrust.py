@@ -14,6 +14,12 @@ fault entry (bias, jammed, effectiveness: an engine that quits reads g = V / (k_
 directly. What the airframe file gets wrong of the drag and the propeller is slow: the throttle
 fault's mode-0 drift carries it. At the Aerosonde's cruise one unit of throttle is ~65 m/s^2 of a_x, so the
 accelerometer's 0.3 m/s^2 is ~0.005 of throttle.
+
+Linear lift and a parabolic polar hold below the stall, near level flight: the row is read within
+the pitot's limits only (pitch attitude 25 deg, pitch rate 15 deg/s: `pitot.near_level_flight`,
+`inputs.RowSplit`). When a jammed elevator frees, the aircraft tumbles through 30 deg of angle of
+attack; read there, the row put the throttle's entries and the mode-0 drift off for tens of seconds
+after (docs/faults.md, "The body velocity turned exactly").
 """
 
 from __future__ import annotations

@@ -73,3 +73,20 @@ def test_a_throttle_entry_jumps_to_the_throttle_the_row_shows(catalogue):
         assert avail[j] and G_[j, T] == 1.0 and sigma[j] == catalogue.settings.thrust_sigma
     de = [f.id for f in catalogue.faults].index("de")
     assert avail[de] and np.isfinite(sigma[de])                 # the elevator keeps its own fit
+
+
+@pytest.mark.parametrize("theta_deg,q_deg", [(30.0, 0.0), (5.0, -40.0), (5.0, 20.0)])
+def test_the_derived_rows_are_read_near_level_flight_only(catalogue, theta_deg, q_deg):
+    """A jammed elevator that frees tumbles the aircraft: beyond 25 deg of pitch or 15 deg/s of pitch
+    rate (as read) neither the throttle row (a polar below the stall) nor the pitot's row is read."""
+    T, A = catalogue.observed.index("throttle"), catalogue.observed.index("airspeed")
+    split = RowSplit.of(catalogue, True, trim_state(catalogue))
+    rows = catalogue.measurements
+    y = np.zeros(len(rows))
+    y[[rows.index(r) for r in ("ax", "az", "airspeed", "theta", "q")]] = [0.5, -9.7, 40.0, 0.05, 0.02]
+    mask = np.ones(len(rows), bool)
+    level = split.split(y, mask, np.array([-0.08, 0.5]))[1]
+    y[[rows.index("theta"), rows.index("q")]] = np.radians([theta_deg, q_deg])
+    upset = split.split(y, mask, np.array([-0.08, 0.5]))[1]
+    assert level[T] and level[A] and not upset[T] and not upset[A]
+    assert np.array_equal(np.delete(level, [T, A]), np.delete(upset, [T, A]))   # the sensors still are
