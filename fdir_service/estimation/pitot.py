@@ -129,11 +129,6 @@ class PitotRow:
         as the wind's expected value while a pitot fault holds it (`_evolve_memory`)."""
         self.memory = memory
 
-    def readable(self, theta: float | None, q: float | None) -> bool:
-        """True when the pitot row may be read at the attitude theta (rad) and pitch rate q (rad/s)
-        (None or not finite: not measured, no limit)."""
-        return near_level_flight(theta, q)
-
     def command(self, throttle: float) -> None:
         """This frame's throttle command (0..1, NaN: unknown): whether the autopilot can hold the
         airspeed (off the limits for HOLD_SETTLE_S)."""

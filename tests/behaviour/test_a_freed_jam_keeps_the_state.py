@@ -20,8 +20,7 @@ import pytest
 
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
-from sim_bridge.type_yardstick import item_view, kind_of
-from sim_bridge.yardstick import Hysteresis, declared
+from tests.helpers.declarations import first_declarations
 
 
 def worst_errors(velocity_step: str) -> tuple[np.ndarray, float]:
@@ -62,9 +61,5 @@ def test_after_a_freed_jam_only_the_elevator_is_declared():
     and the attitude at 31.05 s."""
     sc = load_scenario("real-actuators")
     tr = fly(dataclasses.replace(sc, navigation="truth", duration_s=45.0), "RJMRPF", 77, 0)
-    P = np.array([o.fault_probability for o in tr.outputs])
-    view = item_view(P, [kind_of(f) for f in sc.estimator.faults], [f.id for f in sc.estimator.faults])
-    found = {item: float(tr.t[np.flatnonzero(d)[0]]) for item, d in
-             ((item, declared(tr.t, view.prob[:, i], Hysteresis())) for i, item in enumerate(view.names))
-             if d.any()}
+    found = first_declarations(sc.estimator.faults, tr)
     assert set(found) == {"de"} and 24.4 < found["de"] < 26.0

@@ -12,13 +12,11 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
 import pytest
 
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
-from sim_bridge.type_yardstick import item_view, kind_of
-from sim_bridge.yardstick import Hysteresis, declared
+from tests.helpers.declarations import first_declarations
 
 
 def declared_items(**parts: str) -> dict[str, float]:
@@ -28,15 +26,7 @@ def declared_items(**parts: str) -> dict[str, float]:
     est = sc.estimator
     est = dataclasses.replace(est, settings=dataclasses.replace(est.settings, **parts))
     sc = dataclasses.replace(sc, estimator=est, navigation="truth", duration_s=195.0)
-    tr = fly(sc, "RJMRPF", 21, 0)
-    P = np.array([o.fault_probability for o in tr.outputs])
-    view = item_view(P, [kind_of(f) for f in est.faults], [f.id for f in est.faults])
-    found = {}
-    for i, item in enumerate(view.names):
-        k = np.flatnonzero(declared(tr.t, view.prob[:, i], Hysteresis()))
-        if k.size:
-            found[item] = float(tr.t[k[0]])
-    return found
+    return first_declarations(est.faults, fly(sc, "RJMRPF", 21, 0))
 
 
 def test_the_catalogue_learns_its_pitch_noise_from_the_frames_mean_a_z():

@@ -19,7 +19,14 @@ from fdir_service.estimation.inputs import G
 from fdir_service.estimation.jump import DriftMemory
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
-from fdir_service.estimation.pitot import HOLD_SETTLE_S, PitotRow, gust_sigma, pitot_row, wind_entry
+from fdir_service.estimation.pitot import (
+    HOLD_SETTLE_S,
+    PitotRow,
+    gust_sigma,
+    near_level_flight,
+    pitot_row,
+    wind_entry,
+)
 from fdir_service.estimator_config import estimator_document, load_estimator, parse_estimator
 
 ROWS = ("u", "airspeed")
@@ -290,10 +297,10 @@ def test_only_the_pitot_can_be_blocked_and_only_the_kinematic_model_watches_it()
 
 
 def test_the_pitot_is_read_near_level_flight_only():
-    part = pitot_part()
-    assert part.readable(0.1, 0.05) and part.readable(None, None) and part.readable(float("nan"), 0.0)
-    assert not part.readable(np.radians(30.0), 0.0)          # an upset's attitude
-    assert not part.readable(0.0, np.radians(20.0))          # an upset's pitch rate
+    assert near_level_flight(0.1, 0.05) and near_level_flight(None, None)
+    assert near_level_flight(float("nan"), 0.0)              # not measured: no limit
+    assert not near_level_flight(np.radians(30.0), 0.0)      # an upset's attitude
+    assert not near_level_flight(0.0, np.radians(20.0))      # an upset's pitch rate
     est = load_estimator("aerosonde-catalogue")
     filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=50)
     rows = est.measurements

@@ -1,0 +1,21 @@
+"""Items a flight declares, by the service's rule (P(item) over its types, the declare hysteresis)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim_bridge.type_yardstick import item_view, kind_of
+from sim_bridge.yardstick import Hysteresis, declared
+
+
+def first_declarations(faults, tr) -> dict[str, float]:
+    """{item: first declared frame's time (s)} of a flight `tr` (its outputs' fault_probability)
+    monitored with the estimator fault entries `faults` (`FaultSpec`s)."""
+    P = np.array([o.fault_probability for o in tr.outputs])
+    view = item_view(P, [kind_of(f) for f in faults], [f.id for f in faults])
+    found = {}
+    for i, item in enumerate(view.names):
+        k = np.flatnonzero(declared(tr.t, view.prob[:, i], Hysteresis()))
+        if k.size:
+            found[item] = float(tr.t[k[0]])
+    return found
