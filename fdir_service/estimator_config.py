@@ -202,6 +202,8 @@ class FilterSettings:
     #                                      frame's reading) | "frame_mean" (its two readings' mean)
     velocity_step: str = "euler"         # the kinematic model's body velocity: "euler" (u - q w dt) |
     #                                      "rotation" (turned by the frame's pitch angle exactly)
+    frame_angle: str = "trapezoid"       # the kinematic model's pitch angle over a frame: "trapezoid"
+    #                                      of its pitch rates | "spread" (drawn between dt q and dt q+)
     wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.PitotRow) ...
     wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
@@ -452,6 +454,7 @@ _CHOICES = {
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
     "held_value": ("sentinel", "mean"), "q_noise": ("fixed", "learned"),
     "az_input": ("frame_end", "frame_mean"), "velocity_step": ("euler", "rotation"),
+    "frame_angle": ("trapezoid", "spread"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
@@ -537,12 +540,14 @@ def _check_learned_noise(settings: FilterSettings, rows: tuple[str, ...]) -> Non
 
 
 KINEMATIC_PARTS = {"az_input": "pairs the accelerometer the kinematic model integrates",
-                   "velocity_step": "is the kinematic model's body-velocity step"}
+                   "velocity_step": "is the kinematic model's body-velocity step",
+                   "frame_angle": "is the kinematic model's pitch angle over a frame"}
 """[parts] settings only the kinematic model has (their first value is every model's default)."""
 
 
 def _check_kinematic_parts(settings: FilterSettings) -> None:
-    """parts.az_input and parts.velocity_step other than their defaults need the kinematic model."""
+    """parts.az_input, velocity_step and frame_angle other than their defaults need the kinematic
+    model."""
     for key, what in KINEMATIC_PARTS.items():
         value = getattr(settings, key)
         if value != _CHOICES[key][0] and settings.process_model != "kinematic":

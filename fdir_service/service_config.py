@@ -34,6 +34,9 @@ from fdir_service.tomltable import NON_NEGATIVE, POSITIVE, Check, TomlTable
 STAMPS = ("message", "unwrap32", "latest", "arrival", "epoch")
 TRANSFORMS = ("none", "negate", "pressure_to_altitude", "pwm", "differential_pressure_to_airspeed")
 RHO_SEA_LEVEL = 1.225
+TYPE_HOLD_S = 0.0
+"""s: how long a fault type holds its share of P(item) before the service names it
+(`DeclareConfig.type_hold_s`; docs/faults.md, "Naming the type")."""
 """kg/m^3: a pitot's differential pressure (Pa) reads as the indicated airspeed sqrt(2 dp / rho_0)."""
 _FIELD_RE = re.compile(r"^([a-z_][a-z0-9_]*)(?:\[(\d+)\])?$")
 
@@ -110,15 +113,16 @@ class FieldMap:
 class DeclareConfig:
     """STATUSTEXT hysteresis: declare when P(fault) >= p_declare for declare_hold_s of frame
     time; clear when P(fault) <= p_clear for clear_hold_s. A declared item's type is named once
-    P(item) >= p_declare and the most probable type holds a share >= p_type of it (at the
-    declaration, or held for declare_hold_s after it); until then it is declared as of an unclear
-    type (0: always name the most probable)."""
+    P(item) >= p_declare and the most probable type has held a share >= p_type of it for
+    type_hold_s of frame time (a change of name: at least declare_hold_s too); until then it is
+    declared as of an unclear type (p_type 0 and type_hold_s 0: name the most probable at once)."""
 
     p_declare: float = 0.9
     declare_hold_s: float = 0.2
     p_clear: float = 0.5
     clear_hold_s: float = 1.0
     p_type: float = 0.8
+    type_hold_s: float = TYPE_HOLD_S
 
 
 @dataclass(frozen=True)
@@ -505,6 +509,7 @@ def _parse(doc: dict[str, Any], text: str, estimator_doc: dict[str, Any] | None,
                         check=Check(lambda v: 0 <= v < p_decl, f"a probability below p_declare ({p_decl})")),
         clear_hold_s=dc.take("clear_hold_s", "number", 1.0, check=NON_NEGATIVE.saying("a time >= 0")),
         p_type=dc.take("p_type", "number", 0.8, check=Check(lambda v: 0 <= v <= 1, "a share in [0, 1]")),
+        type_hold_s=dc.take("type_hold_s", "number", TYPE_HOLD_S, check=NON_NEGATIVE.saying("a time >= 0")),
     )
     dc.finish()
     publish = PublishConfig(

@@ -40,6 +40,7 @@ from fdir_service.runtime.publishing import UNCLEAR
 from sim_bridge.faults import EDGE_TOL_S
 from sim_bridge.scenario import ProfileComponent
 from sim_bridge.yardstick import (
+    EPS_S,
     Hysteresis,
     declarations,
     declared_during,
@@ -47,7 +48,6 @@ from sim_bridge.yardstick import (
     episode_window,
     episodes,
     first_declared,
-    first_held,
     first_standing,
 )
 
@@ -197,22 +197,30 @@ def item_view(prob: np.ndarray, entries: Sequence[Kind], names: list[str]) -> It
     return ItemView(list(layout.names), list(layout.targets), p_item, best, type_share(p_best, p_item))
 
 
+def sure_since(t: np.ndarray, sure: np.ndarray, best: np.ndarray) -> np.ndarray:
+    """(K,) s: the first frame time of each frame's run in which the same entry `best` (K,) has been
+    clear enough to name (`sure` (K,) bool), NaN where it is not (`publishing.Publisher._track_type`)."""
+    new = sure.copy()
+    new[1:] &= ~(sure[:-1] & (best[1:] == best[:-1]))
+    first = np.maximum.accumulate(np.where(new, np.arange(sure.size), 0))
+    return np.where(sure, t[first], np.nan)
+
+
 def named_entry(t: np.ndarray, dec: np.ndarray, view: ItemView, i: int, k0: int,
                 rule: Hysteresis) -> tuple[int, int] | None:
     """(frame, entry) where the service names the type of item i declared at frame k0
-    (`publishing.Publisher`): at k0 when P(item) >= p_declare and its most probable entry holds a
-    share >= p_type of it, else the first frame where one entry has been so for declare_hold_s
-    while the declaration stands; None if never. dec (K,): the item's declaration."""
+    (`publishing.Publisher`): the first frame from k0 on, while the declaration stands, where the
+    most probable entry has held a share >= p_type of P(item) >= p_declare for type_hold_s (after
+    k0: and at least declare_hold_s); None if never. dec (K,): the item's declaration."""
     best = view.best[:, i]
     sure = (view.share[:, i] >= rule.p_type) & (np.nan_to_num(view.prob[:, i]) >= rule.p_declare)
-    if sure[k0]:
-        return k0, int(best[k0])
     rest = dec[k0 + 1:]
     end = k0 + 1 + (int(np.argmin(rest)) if not rest.all() else rest.size)   # the declaration's end
-    runs = {int(b): sure[:end] & (best[:end] == b) for b in np.unique(best[k0 + 1:end])}
-    hits = [(k, b) for b, run in runs.items()
-            if (k := first_held(t[:end], run, k0 + 1, rule.declare_hold_s)) is not None]
-    return min(hits) if hits else None
+    held = t[:end] - sure_since(t[:end], sure[:end], best[:end])          # NaN where not sure
+    if held[k0] >= rule.type_hold_s - EPS_S:
+        return k0, int(best[k0])
+    later = np.flatnonzero(held[k0 + 1:] >= max(rule.type_hold_s, rule.declare_hold_s) - EPS_S)
+    return (k0 + 1 + int(later[0]), int(best[k0 + 1 + int(later[0])])) if later.size else None
 
 
 def typed_episode(t: np.ndarray, dec: np.ndarray, view: ItemView, entries: Sequence[Kind],

@@ -32,6 +32,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from fdir_service.recording.schemas import finite_or_none
+from fdir_service.service_config import TYPE_HOLD_S
 
 GRACE_S = 3.0
 """After an injected fault ends, declarations are neither false alarms nor fault-free time for
@@ -58,6 +59,7 @@ class Hysteresis:
     p_clear: float = 0.5
     clear_hold_s: float = 1.0
     p_type: float = 0.8
+    type_hold_s: float = TYPE_HOLD_S
 
     @classmethod
     def of_service(cls) -> Hysteresis:
@@ -65,7 +67,8 @@ class Hysteresis:
         from fdir_service.service_config import load_service_config
 
         dc = load_service_config().publish.declare
-        return cls(dc.p_declare, dc.declare_hold_s, dc.p_clear, dc.clear_hold_s, dc.p_type)
+        return cls(dc.p_declare, dc.declare_hold_s, dc.p_clear, dc.clear_hold_s, dc.p_type,
+                   dc.type_hold_s)
 
     def with_threshold(self, p: float) -> Hysteresis:
         """The same rule declaring at p (clearing below min(p_clear, p - 0.1))."""

@@ -165,7 +165,9 @@ def _process(estimator: EstimatorConfig, layout: FaultLayout):
         return KinematicProcess(estimator.dt_s, layout, moment, estimator.operating_point.airspeed_mps,
                                 _input_positions(estimator, LATERAL_ROWS),
                                 _input_positions(estimator, BODY_RATE_ROWS),
-                                rotation=estimator.settings.velocity_step == "rotation")
+                                rotation=estimator.settings.velocity_step == "rotation",
+                                angle_spread=(float(estimator.state_process_std()[3])
+                                              if estimator.settings.frame_angle == "spread" else None))
     lm = estimator_linear_model(estimator)
     if estimator.settings.process_model == "linear":
         return LinearProcess(lm, layout)

@@ -102,11 +102,15 @@ class KinematicProcess:
 
     def __init__(self, dt: float, layout: FaultLayout, moment: PitchMoment | None = None,
                  v_ref: float = 40.0, lateral: tuple[int, int] | None = None,
-                 rates: tuple[int, int] | None = None, rotation: bool = False) -> None:
+                 rates: tuple[int, int] | None = None, rotation: bool = False,
+                 angle_spread: float | None = None) -> None:
         self.dt = float(dt)
         self.rotation = rotation
         """parts.velocity_step = "rotation": (u, w) turn by the frame's pitch angle exactly
         (`_velocity_step`); False: the Euler step (u - q w dt, w + q u dt)."""
+        self.angle_spread = angle_spread
+        """parts.frame_angle = "spread": theta's process noise over a frame (rad), above which the
+        frame's angle is drawn between its two rectangle rules (`close_frame`); None: the trapezoid."""
         self.layout = layout
         self.moment = moment
         self.lateral = lateral
@@ -200,15 +204,33 @@ class KinematicProcess:
         return (vu * cf - vw * sf + h * (fu * ch - fw * sh),
                 vu * sf + vw * cf + h * (fu * sh + fw * ch))
 
-    def close_frame(self, prior: np.ndarray, X: np.ndarray) -> None:
+    def close_frame(self, prior: np.ndarray, X: np.ndarray, rng: np.random.Generator | None = None) -> None:
         """In place, once the frame's correction has moved X (n, N): theta += dt (q+ - q) / 2, so
         that theta over the frame is the trapezoid of its pitch rates, q of the prior (n, N) (the same
         particles before the step) and q+ as the gyro corrected it, not as the moment predicted it.
         A surface that snaps pitches the aircraft at ~100 deg/s within a frame; theta + q dt alone
         then lags by dt (q+ - q) / 2 per frame. With `rotation` the body velocity (u, w) turns by
-        that angle too."""
+        that angle too. With `angle_spread` (parts.frame_angle = "spread") the angle is drawn
+        between the rectangle rules (`_spread_angle`)."""
         turn = (0.5 * self.dt) * (X[4] - prior[4])
+        if self.angle_spread is not None and rng is not None:
+            turn = self._spread_angle(turn, rng)
         X[3] += turn
         if self.rotation:
             c, s = np.cos(turn), np.sin(turn)
             X[1], X[2] = X[1] * c - X[2] * s, X[1] * s + X[2] * c
+
+    def _spread_angle(self, turn: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The frame's extra angle (N,) rad, drawn per particle between the rectangle rules.
+
+        The pitch angle over a frame, the integral of q, lies between dt q and dt q+ when q moves
+        one way within it: the trapezoid plus or minus |turn|. A surface that snaps changes q by
+        100 deg/s within a frame, somewhere in it, and the trapezoid is then up to 2.5 deg off
+        (docs/faults.md, "The frame's angle spread"). Where that bound exceeds theta's process
+        noise over a frame (`angle_spread`) on some particle, each particle's angle is drawn
+        uniform on it, so the cloud spans the attitude the aircraft may have and the attitude
+        sensor picks it; elsewhere the trapezoid stands and no draw is made."""
+        half = np.abs(turn)
+        if not half.max() > self.angle_spread:
+            return turn
+        return turn + half * rng.uniform(-1.0, 1.0, turn.shape)

@@ -20,8 +20,9 @@ class Predictor(Protocol):
     """predict: the process model plus its noise (`predict.GaussianPredict`, `ModeGatedPredict`)."""
 
     process: object
-    """propagate(X, u): the frame's step; close_frame(prior, X): in place once the correction has
-    moved X (`process.WholeFrameStep`: nothing; `kinematic.KinematicProcess`: theta's trapezoid)."""
+    """propagate(X, u): the frame's step; close_frame(prior, X, rng): in place once the correction
+    has moved X (`process.WholeFrameStep`: nothing; `kinematic.KinematicProcess`: theta's trapezoid,
+    or its spread)."""
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:

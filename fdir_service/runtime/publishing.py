@@ -13,10 +13,11 @@ items; NAMED_VALUE_FLOAT stays per entry (f_<id>, pf_<id>, ...).
 
 Hysteresis (config `[publish.declare]`), per item: an item is declared when P(item faulty) >=
 p_declare on every frame for declare_hold_s of frame time, and cleared when P <= p_clear for
-clear_hold_s. A type is *named* when P(item) >= p_declare and the item's most probable type
-holds a share >= p_type of it: a declaration carries the named type, or UNCLEAR while none is
-("FDIR de fault, type unclear p=0.95"), and while declared a new named type held for
-declare_hold_s is announced (an unclear declaration's first name too). Each change is a typed
+clear_hold_s. A type is *named* once P(item) >= p_declare and the item's most probable type
+has held a share >= p_type of it for type_hold_s of frame time: a declaration carries the named
+type, or UNCLEAR while none is ("FDIR de fault, type unclear p=0.95"), and while declared a new
+named type (held for type_hold_s, and at least declare_hold_s) is announced (an unclear
+declaration's first name too). Each change is a typed
 event (`FaultDeclared`, `FaultCleared`, `FaultTypeChanged`) besides its STATUSTEXT ("FDIR q stuck
 at 3.2 deg/s p=0.97").
 
@@ -73,8 +74,8 @@ class _Hysteresis:
     declared: bool = False
     since_us: int | None = None  # first frame of the current run above p_declare / below p_clear
     fault_type: str = "bias"     # the type announced by the last declaration or type change (or UNCLEAR)
-    candidate: str = "bias"      # while declared: the named type (clear enough) differing from fault_type
-    type_since_us: int | None = None  # first frame of the candidate's current run
+    sure_type: str | None = None  # the type clear enough to name on the last frame (`Publisher._named_type`)
+    sure_since_us: int | None = None  # first frame of sure_type's current run
 
 
 class Change(NamedTuple):
@@ -239,6 +240,7 @@ class Publisher:
     def _declaration_change(self, i: int, h: _Hysteresis, time_us: int, view: ItemFrame) -> Change | None:
         """Item i's declaration or type change on this frame, if any."""
         dc = self.config.declare
+        self._track_type(i, h, time_us, view)
         p = float(view.p[i])
         crossing = (p <= dc.p_clear) if h.declared else (p >= dc.p_declare)
         if not crossing:
@@ -248,9 +250,9 @@ class Publisher:
             h.since_us = time_us
         if not _held(h.since_us, time_us, dc.clear_hold_s if h.declared else dc.declare_hold_s):
             return self._type_change(i, h, time_us, view)
-        h.declared, h.since_us, h.type_since_us = not h.declared, None, None
+        h.declared, h.since_us = not h.declared, None
         if h.declared:                      # a clearing keeps the last type named
-            h.fault_type = h.candidate = self._named_type(i, view) or UNCLEAR
+            h.fault_type = self._held_type(h, time_us, dc.type_hold_s) or UNCLEAR
         text = self._text(i, view, h.declared, h.fault_type)
         return Change(i, "declared" if h.declared else "cleared", text)
 
@@ -261,18 +263,30 @@ class Publisher:
         sure = float(view.p[i]) >= dc.p_declare and float(view.share[i]) >= dc.p_type
         return view.types[i] if sure else None
 
-    def _type_change(self, i: int, h: _Hysteresis, time_us: int, view: ItemFrame) -> Change | None:
-        """While item i is declared: a change once a new named type (`_named_type`) has held for
-        declare_hold_s (a candidate that changes, or loses its share, restarts the hold)."""
+    def _track_type(self, i: int, h: _Hysteresis, time_us: int, view: ItemFrame) -> None:
+        """On every frame, declared or not: the type clear enough to name (`_named_type`) and the
+        first frame of its current run."""
         ftype = self._named_type(i, view)
-        if not h.declared or ftype is None or ftype == h.fault_type:
-            h.type_since_us = None
+        if ftype != h.sure_type:
+            h.sure_type, h.sure_since_us = ftype, time_us
+
+    @staticmethod
+    def _held_type(h: _Hysteresis, time_us: int, hold_s: float) -> str | None:
+        """The type clear enough to name, if it has been so for hold_s (s) at frame time time_us."""
+        if h.sure_type is None or h.sure_since_us is None:
             return None
-        if h.type_since_us is None or ftype != h.candidate:
-            h.candidate, h.type_since_us = ftype, time_us
-        if not _held(h.type_since_us, time_us, self.config.declare.declare_hold_s):
+        return h.sure_type if _held(h.sure_since_us, time_us, hold_s) else None
+
+    def _type_change(self, i: int, h: _Hysteresis, time_us: int, view: ItemFrame) -> Change | None:
+        """While item i is declared: a change once a new type has been clear enough to name
+        (`_named_type`) for type_hold_s, and at least declare_hold_s (a flicker is not announced)."""
+        if not h.declared:
             return None
-        previous, h.fault_type, h.type_since_us = h.fault_type, ftype, None
+        dc = self.config.declare
+        ftype = self._held_type(h, time_us, max(dc.type_hold_s, dc.declare_hold_s))
+        if ftype is None or ftype == h.fault_type:
+            return None
+        previous, h.fault_type = h.fault_type, ftype
         return Change(i, "type", f"{self._text(i, view, True, ftype)} (was {previous})", previous)
 
     def _text(self, i: int, view: ItemFrame, declared: bool, fault_type: str) -> str:

@@ -29,6 +29,15 @@ DEG = math.pi / 180.0
 CFG = ch4_service()
 
 
+def publish_config(**declare):
+    """The ch4 service's publish config with [publish.declare] keys replaced."""
+    return dataclasses.replace(CFG.publish, declare=dataclasses.replace(CFG.publish.declare, **declare))
+
+
+QUICK = publish_config(type_hold_s=0.2)
+"""A type named after 0.2 s (the declare hold) instead of the default's second."""
+
+
 def spec(fid: str, target: str, unit: str, fault_type: str = "bias") -> FaultSpec:
     kind = "actuator" if target in ("delta_e", "delta_t") else "sensor"
     return FaultSpec(fid, target, kind, unit, 0.01, fault_type=fault_type)
@@ -104,7 +113,7 @@ def frame(k: int) -> AssembledFrame:
 
 
 def test_item_hysteresis_declares_with_the_type_and_announces_a_type_change():
-    pub = Publisher(CFG.publish, FAULTS[:4], new_mavlink(1, 191), adaptive=False)   # hold 0.2 s
+    pub = Publisher(QUICK, FAULTS[:4], new_mavlink(1, 191), adaptive=False)   # holds 0.2 s
     stuck = step([0.0, 0.02, 0.0, 0.97], value=[0, 0, 0, 3.2 * DEG])
     bias = step([0.0, 0.93, 0.0, 0.05], estimate=[0, 2.5 * DEG, 0, 0])
     events, texts = [], []
@@ -125,7 +134,7 @@ def test_item_hysteresis_declares_with_the_type_and_announces_a_type_change():
 
 
 def test_a_type_flicker_shorter_than_the_hold_is_not_announced():
-    pub = Publisher(CFG.publish, FAULTS[:4], new_mavlink(1, 191), adaptive=False)
+    pub = Publisher(QUICK, FAULTS[:4], new_mavlink(1, 191), adaptive=False)
     stuck = step([0.0, 0.1, 0.0, 0.97])
     bias = step([0.0, 0.98, 0.0, 0.05])
     seq = [stuck] * 5 + ([bias] * 3 + [stuck] * 2) * 4
@@ -169,7 +178,7 @@ def test_a_blocked_pitot_is_said_with_its_reading_and_every_type_has_its_own_cod
 
 
 def test_a_declaration_whose_types_share_the_evidence_is_unclear_until_one_holds_p_type():
-    pub = Publisher(CFG.publish, FAULTS[:4], new_mavlink(1, 191), adaptive=False)   # p_type 0.8
+    pub = Publisher(QUICK, FAULTS[:4], new_mavlink(1, 191), adaptive=False)   # p_type 0.8
     split = step([0.0, 0.5, 0.0, 0.45], value=[0, 0, 0, 3.2 * DEG])
     stuck = step([0.0, 0.03, 0.0, 0.95], value=[0, 0, 0, 3.2 * DEG])
     seq = [split] * 8 + [stuck] * 6
@@ -182,9 +191,39 @@ def test_a_declaration_whose_types_share_the_evidence_is_unclear_until_one_holds
     assert len(events) == 2
 
 
-def test_p_type_0_names_the_most_probable_type_at_once():
-    cfg = dataclasses.replace(CFG.publish, declare=dataclasses.replace(CFG.publish.declare, p_type=0.0))
-    pub = Publisher(cfg, FAULTS[:4], new_mavlink(1, 191), adaptive=False)
+def test_p_type_0_and_no_type_hold_name_the_most_probable_type_at_once():
+    pub = Publisher(publish_config(p_type=0.0, type_hold_s=0.0), FAULTS[:4], new_mavlink(1, 191),
+                    adaptive=False)
     split = step([0.0, 0.45, 0.0, 0.5], value=[0, 0, 0, 3.2 * DEG])
     events = [e for k, o in enumerate([split] * 8) for e in pub.publish(frame(200 + k), o)[1]]
     assert [(type(e), e.fault_type) for e in events] == [(FaultDeclared, "stuck")]
+
+
+def test_with_a_type_hold_a_type_is_named_once_it_has_held_its_share_that_long():
+    assert CFG.publish.declare.type_hold_s == 0.0                 # the default: no hold
+    pub = Publisher(publish_config(type_hold_s=0.5), FAULTS[:4], new_mavlink(1, 191), adaptive=False)
+    bias = step([0.0, 0.97, 0.0, 0.02], estimate=[0, 2.5 * DEG, 0, 0])
+    stuck = step([0.0, 0.03, 0.0, 0.95], value=[0, 0, 0, 3.2 * DEG])
+    seq = [bias] * 9 + [stuck] * 30          # a young offset for 0.45 s, then a stuck gyro
+    events = [e for k, o in enumerate(seq) for e in pub.publish(frame(200 + k), o)[1]]
+    assert events[0] == FaultDeclared("q", 10.2, pytest.approx(0.99), pytest.approx(2.5 * DEG),
+                                      "FDIR q fault, type unclear p=0.99", "unclear")
+    named = "FDIR q stuck at 3.2 deg/s p=0.98 (was unclear)"      # stuck since 10.45 s, held 0.5 s
+    assert events[1] == FaultTypeChanged("q", pytest.approx(10.95), pytest.approx(0.98),
+                                         pytest.approx(3.2 * DEG), named, "stuck", "unclear")
+    assert len(events) == 2
+
+
+def test_a_type_clear_before_the_declaration_counts_toward_its_hold():
+    pub = Publisher(publish_config(p_declare=0.95, type_hold_s=0.5), FAULTS[:4], new_mavlink(1, 191),
+                    adaptive=False)
+    sure = step([0.0, 0.0, 0.0, 0.93], value=[0, 0, 0, 3.2 * DEG])      # P 0.93: clear, not declared
+    above = step([0.0, 0.0, 0.0, 0.97], value=[0, 0, 0, 3.2 * DEG])
+    seq = [sure] * 10 + [above] * 10
+    events = [e for k, o in enumerate(seq) for e in pub.publish(frame(200 + k), o)[1]]
+    assert [type(e) for e in events] == [FaultDeclared] and events[0].fault_type == "unclear"
+    pub = Publisher(publish_config(declare_hold_s=0.6, type_hold_s=0.5), FAULTS[:4], new_mavlink(1, 191),
+                    adaptive=False)
+    events = [e for k, o in enumerate([above] * 30) for e in pub.publish(frame(200 + k), o)[1]]
+    declared_at = [(type(e), e.fault_type, e.time_s) for e in events]
+    assert declared_at == [(FaultDeclared, "stuck", pytest.approx(10.6))]

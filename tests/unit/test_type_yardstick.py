@@ -208,8 +208,8 @@ def test_the_estimators_truth_comes_by_id_in_a_bias_world_and_by_item_and_type_i
 def test_a_declaration_whose_type_settles_within_2_s_is_right_2_s_later():
     sc = _scenario()
     prob = np.zeros((1, T.size, len(ENTRIES)))
-    prob[0, _between(10.5, 11.5), 0] = 1.0                     # first called biased ...
-    prob[0, _between(11.5, 20.0), 1] = 1.0                     # ... stuck from 11.5 s
+    prob[0, _between(10.5, 12.0), 0] = 1.0                     # first called biased (named at 11.5 s) ...
+    prob[0, _between(12.0, 20.0), 1] = 1.0                     # ... stuck from 12 s
     _, by_type = scenario_yardsticks(sc, T, prob, np.zeros_like(prob),
                                      np.where(_between(10.0, 20.0), 3.0, 0.0)[None, :, None], np.array([1]))
     st = by_type["types"]["stuck"]
@@ -254,10 +254,22 @@ def test_a_declaration_whose_type_never_holds_its_share_stays_unclear():
     assert not ep["right"] and not ep["right_probable"] and ep["right_item"]
 
 
-def test_with_p_type_0_the_most_probable_type_at_the_declaration_is_named():
-    rule = Hysteresis(0.9, 0.2, 0.5, 1.0, p_type=0.0)
+def test_with_p_type_0_and_no_hold_the_most_probable_type_at_the_declaration_is_named():
+    rule = Hysteresis(0.9, 0.2, 0.5, 1.0, p_type=0.0, type_hold_s=0.0)
     prob = np.zeros((T.size, len(ENTRIES)))
     prob[_between(10.5, 20.0), 0], prob[_between(10.5, 20.0), 1] = 0.5, 0.45
     (ep,) = typed_run(T, prob, np.zeros_like(prob), ENTRIES, NAMES, [BARO_STUCK], np.zeros((T.size, 1)),
                       _between(10.0, 20.0)[:, None], rule)
     assert ep["declared"] == "baro_alt:bias" and ep["named_s"] == 0.0 and not ep["right"]
+
+
+def test_a_type_that_leads_for_less_than_the_hold_is_not_named():
+    held = Hysteresis(0.9, 0.2, 0.5, 1.0, type_hold_s=0.5)
+    prob = np.zeros((T.size, len(ENTRIES)))
+    prob[_between(10.5, 10.9), 0], prob[_between(10.9, 20.0), 1] = 0.95, 0.95   # offset 0.4 s, then stuck
+    (ep,) = typed_run(T, prob, np.zeros_like(prob), ENTRIES, NAMES, [BARO_STUCK], np.zeros((T.size, 1)),
+                      _between(10.0, 20.0)[:, None], held)
+    assert ep["declared"] == "baro_alt:stuck" and ep["right"] and not ep["right_probable"]
+    assert ep["named_s"] == pytest.approx(11.4 - 10.7, abs=1e-9)
+    ep = _split([(10.5, 10.9, {0: 0.95}), (10.9, 20.0, {1: 0.95})])          # no hold: the offset is named
+    assert ep["declared"] == "baro_alt:bias" and not ep["right"]
