@@ -181,12 +181,17 @@ def test_a_declaration_whose_types_share_the_evidence_is_unclear_until_one_holds
     pub = Publisher(QUICK, FAULTS[:4], new_mavlink(1, 191), adaptive=False)   # p_type 0.8
     split = step([0.0, 0.5, 0.0, 0.45], value=[0, 0, 0, 3.2 * DEG])
     stuck = step([0.0, 0.03, 0.0, 0.95], value=[0, 0, 0, 3.2 * DEG])
-    seq = [split] * 8 + [stuck] * 6
+    unclear_then_stuck(pub, [split] * 8 + [stuck] * 6, 0.95, 0.0, 10.6)
+
+
+def unclear_then_stuck(pub: Publisher, seq: list[StepOutput], p: float, estimate: float, named_at: float):
+    """Published from 10 s at 20 Hz, seq declares the gyro at 10.2 s as of an unclear type (P p,
+    the most probable type's value `estimate`), then names it stuck at named_at (s), and no more."""
     events = [e for k, o in enumerate(seq) for e in pub.publish(frame(200 + k), o)[1]]
-    unclear = "FDIR q fault, type unclear p=0.95"
-    assert events[0] == FaultDeclared("q", 10.2, pytest.approx(0.95), 0.0, unclear, "unclear")
+    assert events[0] == FaultDeclared("q", 10.2, pytest.approx(p), pytest.approx(estimate),
+                                      f"FDIR q fault, type unclear p={p:.2f}", "unclear")
     named = "FDIR q stuck at 3.2 deg/s p=0.98 (was unclear)"
-    assert events[1] == FaultTypeChanged("q", pytest.approx(10.6), pytest.approx(0.98),
+    assert events[1] == FaultTypeChanged("q", pytest.approx(named_at), pytest.approx(0.98),
                                          pytest.approx(3.2 * DEG), named, "stuck", "unclear")
     assert len(events) == 2
 
@@ -204,14 +209,8 @@ def test_with_a_type_hold_a_type_is_named_once_it_has_held_its_share_that_long()
     pub = Publisher(publish_config(type_hold_s=0.5), FAULTS[:4], new_mavlink(1, 191), adaptive=False)
     bias = step([0.0, 0.97, 0.0, 0.02], estimate=[0, 2.5 * DEG, 0, 0])
     stuck = step([0.0, 0.03, 0.0, 0.95], value=[0, 0, 0, 3.2 * DEG])
-    seq = [bias] * 9 + [stuck] * 30          # a young offset for 0.45 s, then a stuck gyro
-    events = [e for k, o in enumerate(seq) for e in pub.publish(frame(200 + k), o)[1]]
-    assert events[0] == FaultDeclared("q", 10.2, pytest.approx(0.99), pytest.approx(2.5 * DEG),
-                                      "FDIR q fault, type unclear p=0.99", "unclear")
-    named = "FDIR q stuck at 3.2 deg/s p=0.98 (was unclear)"      # stuck since 10.45 s, held 0.5 s
-    assert events[1] == FaultTypeChanged("q", pytest.approx(10.95), pytest.approx(0.98),
-                                         pytest.approx(3.2 * DEG), named, "stuck", "unclear")
-    assert len(events) == 2
+    # a young offset for 0.45 s, then a stuck gyro: named at 10.95 s (stuck since 10.45 s, held 0.5 s)
+    unclear_then_stuck(pub, [bias] * 9 + [stuck] * 30, 0.99, 2.5 * DEG, 10.95)
 
 
 def test_a_type_clear_before_the_declaration_counts_toward_its_hold():
