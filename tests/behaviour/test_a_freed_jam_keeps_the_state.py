@@ -27,7 +27,10 @@ def worst_errors(velocity_step: str) -> tuple[np.ndarray, float]:
     """(max |x_hat - z| of altitude m, u m/s, w m/s from 95 s, the truth's max |q| deg/s then)."""
     sc = load_scenario("real-actuators")
     est = sc.estimator
-    est = dataclasses.replace(est, settings=dataclasses.replace(est.settings, velocity_step=velocity_step))
+    # the trapezoid of the frame's pitch rates, as measured here: the catalogue's frame-angle spread
+    # (stop 46) draws the tumble's angles apart, and its altitude then errs by up to 2.2 m
+    est = dataclasses.replace(est, settings=dataclasses.replace(est.settings, velocity_step=velocity_step,
+                                                                frame_angle="trapezoid"))
     sc = dataclasses.replace(sc, estimator=est, navigation="truth", duration_s=112.0)
     tr = fly(sc, "RJMRPF", 25, 0)
     late = tr.t > 95.0
