@@ -219,8 +219,8 @@ def named_entry(t: np.ndarray, dec: np.ndarray, view: ItemView, i: int, k0: int,
     held = t[:end] - sure_since(t[:end], sure[:end], best[:end])          # NaN where not sure
     if held[k0] >= rule.type_hold_s - EPS_S:
         return k0, int(best[k0])
-    later = np.flatnonzero(held[k0 + 1:] >= max(rule.type_hold_s, rule.declare_hold_s) - EPS_S)
-    return (k0 + 1 + int(later[0]), int(best[k0 + 1 + int(later[0])])) if later.size else None
+    later = k0 + 1 + np.flatnonzero(held[k0 + 1:] >= max(rule.type_hold_s, rule.declare_hold_s) - EPS_S)
+    return (int(later[0]), int(best[later[0]])) if later.size else None
 
 
 def typed_episode(t: np.ndarray, dec: np.ndarray, view: ItemView, entries: Sequence[Kind],

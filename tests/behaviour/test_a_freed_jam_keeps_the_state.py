@@ -27,8 +27,8 @@ def worst_errors(velocity_step: str) -> tuple[np.ndarray, float]:
     """(max |x_hat - z| of altitude m, u m/s, w m/s from 95 s, the truth's max |q| deg/s then)."""
     sc = load_scenario("real-actuators")
     est = sc.estimator
-    # the trapezoid of the frame's pitch rates, as measured here: the catalogue's frame-angle spread
-    # (stop 46) draws the tumble's angles apart, and its altitude then errs by up to 2.2 m
+    # pinned to the trapezoid it measures: with parts.frame_angle = "spread" (stop 46, not the
+    # catalogue's default) this flight's altitude errs by up to 2.2 m in the tumble
     est = dataclasses.replace(est, settings=dataclasses.replace(est.settings, velocity_step=velocity_step,
                                                                 frame_angle="trapezoid"))
     sc = dataclasses.replace(sc, estimator=est, navigation="truth", duration_s=112.0)

@@ -1,9 +1,9 @@
 """When a jammed elevator frees, q changes by ~100 deg/s within a frame, and the trapezoid of the
-frame's pitch rates can put theta 2 deg off. With parts.frame_angle = "spread" (measured on the
-catalogue, not its default yet)
-(`kinematic.KinematicProcess._spread_angle`) the cloud spans the angles between the frame's
-rectangle rules, and the attitude sensor's reading picks one: the sensor is not declared. With the
-trapezoid alone it was (docs/faults.md, "The frame's angle spread").
+frame's pitch rates can put theta 2 deg off. With parts.frame_angle = "spread"
+(`kinematic.KinematicProcess._spread_angle`; measured on the catalogue, not yet its default) the
+cloud spans the angles between the frame's rectangle rules, and the attitude sensor's reading picks
+one: the sensor is not declared. With the trapezoid alone it is (docs/faults.md, "The frame's angle
+spread").
 
 real-actuators run 30 (campaign seed 0), the autopilot on the monitor's estimate as in the
 campaign, to 35 s: the first jam holds the elevator 24.75-27.75 s. The elevator is declared during
