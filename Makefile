@@ -4,6 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 TEST_WORKERS ?= 2
 STAMP  := $(VENV)/.installed
+# numpy's AVX2 kernels on every machine, AVX-512 ones too: the same bits everywhere (docs/replay.md)
+export NPY_DISABLE_CPU_FEATURES ?= X86_V4 AVX512_ICL AVX512_SPR
 
 .PHONY: demo test lint bench clean venv
 
