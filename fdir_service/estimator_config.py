@@ -204,6 +204,8 @@ class FilterSettings:
     #                                      "rotation" (turned by the frame's pitch angle exactly)
     frame_angle: str = "trapezoid"       # the kinematic model's pitch angle over a frame: "trapezoid"
     #                                      of its pitch rates | "spread" (drawn between dt q and dt q+)
+    moment_alpha: str = "lift"           # the pitching moment's angle of attack: "lift" (read from a_z) |
+    #                                      "stall_blend" (the velocity's past the airframe's stall angle)
     wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.PitotRow) ...
     wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
@@ -455,6 +457,7 @@ _CHOICES = {
     "held_value": ("sentinel", "mean"), "q_noise": ("fixed", "learned"),
     "az_input": ("frame_end", "frame_mean"), "velocity_step": ("euler", "rotation"),
     "frame_angle": ("trapezoid", "spread"),
+    "moment_alpha": ("lift", "stall_blend"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
@@ -541,13 +544,14 @@ def _check_learned_noise(settings: FilterSettings, rows: tuple[str, ...]) -> Non
 
 KINEMATIC_PARTS = {"az_input": "pairs the accelerometer the kinematic model integrates",
                    "velocity_step": "is the kinematic model's body-velocity step",
-                   "frame_angle": "is the kinematic model's pitch angle over a frame"}
+                   "frame_angle": "is the kinematic model's pitch angle over a frame",
+                   "moment_alpha": "is the kinematic model's pitching-moment angle of attack"}
 """[parts] settings only the kinematic model has (their first value is every model's default)."""
 
 
 def _check_kinematic_parts(settings: FilterSettings) -> None:
-    """parts.az_input, velocity_step and frame_angle other than their defaults need the kinematic
-    model."""
+    """parts.az_input, velocity_step, frame_angle and moment_alpha other than their defaults need
+    the kinematic model."""
     for key, what in KINEMATIC_PARTS.items():
         value = getattr(settings, key)
         if value != _CHOICES[key][0] and settings.process_model != "kinematic":

@@ -161,7 +161,8 @@ def _input_positions(estimator: EstimatorConfig, rows: tuple[str, ...]) -> tuple
 
 def _process(estimator: EstimatorConfig, layout: FaultLayout):
     if estimator.settings.process_model == "kinematic":
-        moment = PitchMoment(_airframe(estimator.airframe)) if "airspeed" in estimator.measurements else None
+        moment = (PitchMoment(_airframe(estimator.airframe), estimator.settings.moment_alpha == "stall_blend")
+                  if "airspeed" in estimator.measurements else None)
         return KinematicProcess(estimator.dt_s, layout, moment, estimator.operating_point.airspeed_mps,
                                 _input_positions(estimator, LATERAL_ROWS),
                                 _input_positions(estimator, BODY_RATE_ROWS),

@@ -21,6 +21,8 @@ of 0.032 m/s (`benchmarks/moment_residuals.py`; docs/faults.md, "The acceleromet
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from fdir_service.estimation.pitot import PitotRow, near_level_flight, pitot_row
@@ -53,7 +55,7 @@ class RowSplit:
 
     def __init__(self, observed: np.ndarray, imu: np.ndarray, imu_as_input: bool,
                  hold: np.ndarray | None = None, thrust: ThrustCheck | None = None,
-                 pitot: PitotRow | None = None, attitude: tuple[int, int] = (-1, -1),
+                 pitot: PitotRow | None = None, attitude: tuple[int, ...] = (-1, -1, -1, -1),
                  az_mean: int = -1) -> None:
         self.observed = np.asarray(observed, dtype=int)
         self.imu = np.asarray(imu, dtype=int)
@@ -66,8 +68,9 @@ class RowSplit:
         """A `pitot.PitotRow` when the airspeed is also an observed row (`AIRSPEED_ROW`): the pitching
         moment and the thrust check then take it less its estimated fault."""
         self.attitude = attitude
-        """The attitude and pitch-rate rows among the estimator's rows (-1: none): the pitot and the
-        derived throttle row are read near level flight only (`pitot.near_level_flight`)."""
+        """The attitude, pitch-rate and body-velocity (u, w) rows among the estimator's rows (-1:
+        none): the pitot and the derived throttle row are read near level flight only
+        (`pitot.near_level_flight`)."""
         self.az_mean = az_mean
         """a_z's position in the held inputs when the process takes the frame's mean (-1: its end)."""
         self._az_start = float(self.hold[az_mean]) if az_mean >= 0 else 0.0
@@ -84,7 +87,7 @@ class RowSplit:
         thrust = ThrustCheck(estimator.airframe_params()) if THRUST_ROW in derived else None
         return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]),
                    thrust, pitot_row(estimator) if AIRSPEED_ROW in derived else None,
-                   tuple(rows.index(r) if r in rows else -1 for r in ("theta", "q")), az_mean)
+                   tuple(rows.index(r) if r in rows else -1 for r in ("theta", "q", "u", "w")), az_mean)
 
     def split(self, y: np.ndarray, mask: np.ndarray, u: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -98,12 +101,13 @@ class RowSplit:
         u = np.asarray(u, dtype=float)[:2]
         y_obs, mask_obs = y[self.observed], mask[self.observed]
         held = self.hold
+        theta, q, vu, vw = (float(y[j]) if j >= 0 and mask[j] else None for j in self.attitude)
+        alpha = math.atan2(vw, vu) if vu is not None and vw is not None else None
+        level = near_level_flight(theta, q, alpha)     # both derived rows hold near level flight only
         if self.pitot is not None:              # hold = [ax, az, airspeed, ...]: the trusted airspeed
-            self.pitot.command(float(u[1]))
+            self.pitot.command(float(u[1]), level)
             held = held.copy()
             held[2] = self.pitot.trusted(held[2])
-        theta, q = (float(y[j]) if j >= 0 and mask[j] else None for j in self.attitude)
-        level = near_level_flight(theta, q)     # both derived rows hold near level flight only
         if self.thrust is not None:             # the derived throttle row
             ax, az, V = held[:3]
             y_obs = np.append(y_obs, self.thrust.implied_throttle(ax, az, V, u[0]) - u[1])

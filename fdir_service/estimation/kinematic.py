@@ -64,25 +64,41 @@ from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 class PitchMoment:
     """q' (rad/s^2) from the pitching moment of `params` (module docstring), vectorised."""
 
-    def __init__(self, params: AirframeParams) -> None:
+    def __init__(self, params: AirframeParams, stall_aware: bool = False) -> None:
         p = params
         self.p = p
         self.elevator_gain = p.C_mde - p.C_ma * p.C_Lde / p.C_La
         """dC_m / d delta_e with alpha read from the measured lift (1/rad)."""
+        self.stall_aware = bool(stall_aware)
+        """parts.moment_alpha = "stall_blend": past the airframe's stall angle the moment takes the
+        angle of attack of the velocity (`stall_share`), not the one the lift reads."""
+
+    def stall_share(self, alpha: np.ndarray) -> np.ndarray:
+        """sigma(alpha) (N,), 0 below the stall angle alpha0 and 1 beyond it (either sign): the
+        airframe's own stall blend (SPEC section 2, Beard & McLain eq. 4.10), M its sharpness."""
+        p = self.p
+        lo = np.exp(np.clip(-p.M * (alpha - p.alpha0), -700.0, 700.0))
+        hi = np.exp(np.clip(p.M * (alpha + p.alpha0), -700.0, 700.0))
+        return (1.0 + lo + hi) / ((1.0 + lo) * (1.0 + hi))
 
     def scale(self, V: float) -> float:
         """qbar S c / J_y (rad/s^2 per unit C_m) at airspeed V (m/s)."""
         p = self.p
         return 0.5 * p.rho * V * V * p.S * p.c / p.Jy
 
-    def qdot(self, q: np.ndarray, de, a_z: float, V) -> np.ndarray:
+    def qdot(self, q: np.ndarray, de, a_z: float, V, alpha_air: np.ndarray | None = None) -> np.ndarray:
         """q' (N,) for pitch rates q (N,), elevator de (scalar or (N,)) rad, a_z m/s^2, V m/s (scalar
-        or (N,): each particle's own airspeed)."""
+        or (N,): each particle's own airspeed). alpha is read from the measured lift; with
+        alpha_air (N,) rad, the angle of attack of each particle's velocity, it is blended towards
+        alpha_air by the stall share: past the stall the lift falls and no longer reads alpha (a
+        linear read gives ~6 deg at 40 deg), while the pitching moment stays linear in it."""
         p = self.p
         V = max(float(V), 1.0) if np.ndim(V) == 0 else np.maximum(V, 1.0)
         qbar_S = 0.5 * p.rho * V * V * p.S
         qc = q * (p.c / (2.0 * V))
         alpha = (-a_z * p.m / qbar_S - p.C_L0 - p.C_Lq * qc - p.C_Lde * de) / p.C_La
+        if alpha_air is not None:
+            alpha = alpha + self.stall_share(alpha_air) * (alpha_air - alpha)
         return (qbar_S * p.c / p.Jy) * (p.C_m0 + p.C_ma * alpha + p.C_mq * qc + p.C_mde * de)
 
 
@@ -97,6 +113,10 @@ class KinematicProcess:
     """
 
     kind = "kinematic"
+    stall_share = None
+    """(N,) each particle's stall share this frame (`PitchMoment.stall_share`, parts.moment_alpha =
+    "stall_blend"); None while no particle is near the stall: the predict's pitch-rate noise
+    widens with it (`predict.DriftPredict`)."""
     pitot = None
     """The pitot's `pitot.PitotRow` (`use_wind`): the moment's airspeed per particle; None: the reading."""
 
@@ -186,8 +206,29 @@ class KinematicProcess:
             self._add_body_rate_terms(out, u, q, c)
         if self.moment is not None:
             de = self._elevator_of(X, float(u[0]))
-            out[4] += h * self.moment.qdot(q, de, az, self._airspeed(X, float(u[4])))
+            V = self._airspeed(X, float(u[4]))
+            alpha_air = self._stalled_alpha(X, vu, vw)
+            self.stall_share = None if alpha_air is None else self.moment.stall_share(alpha_air)
+            if alpha_air is not None and np.ndim(V) == 1:
+                V = np.hypot(V, vw)              # the whole air-relative speed, not its u part
+            out[4] += h * self.moment.qdot(q, de, az, V, alpha_air)
         return out[:, 0] if one else out
+
+    STALL_MARGIN = 0.2
+    """rad: the velocity's angle of attack is looked at once some particle's is within this of the
+    stall angle (the stall share is below 5e-5 there at M = 50: below it the lift's read stands)."""
+
+    def _stalled_alpha(self, X: np.ndarray, vu: np.ndarray, vw: np.ndarray) -> np.ndarray | None:
+        """The angle of attack of each particle's air-relative velocity (N,) rad, atan2(w, u + W)
+        (W the pitot's head wind, else none), when the moment is stall-aware and some particle is
+        near or past the stall; None otherwise (the lift's read alone, bit for bit)."""
+        if not self.moment.stall_aware:
+            return None
+        ua = vu if self.pitot is None or self.pitot.mean is None else vu + X[N_AIRFRAME + self.pitot.wind]
+        alpha = np.arctan2(vw, ua)
+        if not np.abs(alpha).max() > self.moment.p.alpha0 - self.STALL_MARGIN:
+            return None
+        return alpha
 
     def _velocity_step(self, vu: np.ndarray, vw: np.ndarray, q: np.ndarray, fu, fw
                        ) -> tuple[np.ndarray, np.ndarray]:

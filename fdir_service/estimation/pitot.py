@@ -56,21 +56,28 @@ HOLD_SETTLE_S = 3.0
 before the hold is assumed again (a few seconds for a small UAV; set a priori, not fitted)."""
 PITOT_MAX_PITCH_RAD = math.radians(25.0)
 PITOT_MAX_RATE_RADPS = math.radians(15.0)
-"""Beyond this pitch attitude (rad) or pitch rate (rad/s) the pitot is not read: V ~ u + W holds near
+PITOT_MAX_ALPHA_RAD = math.radians(20.0)
+"""Beyond this pitch attitude (rad), pitch rate (rad/s) or angle of attack of the body's velocity
+over the ground (atan2(w, u) of the u, w readings, rad) the pitot is not read: V ~ u + W holds near
 level flight, and in an upset the head wind's share along body x (W_N cos theta) and the vertical
 velocity's share of V change faster than any gust, so the row would blame the pitot for the attitude.
-The derived throttle row (`thrust.ThrustCheck`: linear lift, a parabolic polar) is read within the
-same limits (`near_level_flight`, `inputs.RowSplit`)."""
+V ~ u + W leaves out w: 6 % of V at 20 deg, 20 % at 33 deg, where a freed elevator's stall put
+the pitch back under 25 deg while the wing was still stalled (real-actuators run 76). The readings'
+angle reaches 11 deg in ordinary climbs in turbulence (8 deg true, 1.4 deg of noise from the u, w
+readings): 10 deg let the hold go on noise and raised a pitot false alarm. The derived
+throttle row (`thrust.ThrustCheck`: linear lift, a parabolic polar) is read within the same limits
+(`near_level_flight`, `inputs.RowSplit`)."""
 
 
 def _within(value: float | None, limit: float) -> bool:
     return value is None or not math.isfinite(value) or abs(value) <= limit
 
 
-def near_level_flight(theta: float | None, q: float | None) -> bool:
-    """True at a pitch attitude theta (rad) and pitch rate q (rad/s) where the pitot and the thrust
-    check may be read (None or not finite: not measured, no limit)."""
-    return _within(theta, PITOT_MAX_PITCH_RAD) and _within(q, PITOT_MAX_RATE_RADPS)
+def near_level_flight(theta: float | None, q: float | None, alpha: float | None = None) -> bool:
+    """True at a pitch attitude theta (rad), pitch rate q (rad/s) and angle of attack alpha (rad)
+    where the pitot and the thrust check may be read (None or not finite: not measured, no limit)."""
+    return (_within(theta, PITOT_MAX_PITCH_RAD) and _within(q, PITOT_MAX_RATE_RADPS)
+            and _within(alpha, PITOT_MAX_ALPHA_RAD))
 
 
 def wind_entry(faults) -> int:
@@ -129,10 +136,14 @@ class PitotRow:
         as the wind's expected value while a pitot fault holds it (`_evolve_memory`)."""
         self.memory = memory
 
-    def command(self, throttle: float) -> None:
-        """This frame's throttle command (0..1, NaN: unknown): whether the autopilot can hold the
-        airspeed (off the limits for HOLD_SETTLE_S)."""
+    def command(self, throttle: float, level: bool = True) -> None:
+        """This frame's throttle command (0..1, NaN: unknown) and whether the aircraft flies near
+        level (`near_level_flight`): whether the autopilot can hold the airspeed (off the throttle's
+        limits and near level for HOLD_SETTLE_S). In an upset no airspeed loop holds the airspeed,
+        and a freed elevator's pull-up took 7 m/s off the ground speed in 0.2 s, which the hold
+        turned into 5 m/s of head wind the pitot then disowned once it was read again."""
         at_limit = not THROTTLE_LIMITS[0] < throttle < THROTTLE_LIMITS[1] and math.isfinite(throttle)
+        at_limit = at_limit or not level
         self.off_limit = 0 if at_limit else min(self.off_limit + 1, self.settle_frames)
         self.authority = self.off_limit >= self.settle_frames
 

@@ -61,7 +61,10 @@ class DriftPredict(GaussianPredict):
         self.bound = np.asarray(bound, dtype=float).reshape(-1, 1)
         self.q_tail = (float(q_tail[0]), float(q_tail[1]))
         """(probability, scale): that share of the particles gets scale x the pitch-rate noise each
-        step (parts.q_tail): a heavy tail for the pitch accelerations no moment model foresees."""
+        step (parts.q_tail): a heavy tail for the pitch accelerations no moment model foresees.
+        Past the airframe's stall (the process's `stall_share`, parts.moment_alpha = "stall_blend")
+        every particle gets it, blended by its stall share: the moment's model, fit about trim,
+        is no better there."""
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:
@@ -71,6 +74,9 @@ class DriftPredict(GaussianPredict):
         noise[N_AIRFRAME:] *= np.where(modes, self.q_std[N_AIRFRAME:], self.drift_std)
         if self.q_tail[0] > 0.0:
             noise[4] *= np.where(rng.random(X.shape[1]) < self.q_tail[0], self.q_tail[1], 1.0)
+        stalled = getattr(self.process, "stall_share", None)
+        if stalled is not None:                # past the stall the moment is no model: the tail's noise
+            noise[4] *= 1.0 + (self.q_tail[1] - 1.0) * stalled
         X += noise
         F = X[N_AIRFRAME:]
         np.minimum(F, self.bound, out=F)

@@ -190,6 +190,19 @@ def test_at_full_throttle_the_hold_lets_go_and_takes_the_airspeed_it_finds_when_
     assert part.authority
 
 
+def test_in_an_upset_the_hold_lets_go_until_the_airspeed_loop_has_settled():
+    part = PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, dt=0.05,
+                    gust=(0.0, 10.0, 1e9), hold=1.0, free_sigma=0.0)
+    part.command(0.6)
+    assert part.authority
+    part.command(0.6, level=False)                   # a freed elevator's pull-up: no airspeed held
+    assert not part.authority
+    settle = int(round(HOLD_SETTLE_S / 0.05))
+    for k in range(settle):                          # level again: the airspeed loop settles first
+        part.command(0.6, level=True)
+        assert part.authority == (k + 1 == settle)
+
+
 def test_under_a_hold_the_airspeeds_gusts_have_the_held_sigma_not_the_winds():
     est = load_estimator("aerosonde-catalogue")
     s = est.settings
@@ -301,6 +314,8 @@ def test_the_pitot_is_read_near_level_flight_only():
     assert near_level_flight(float("nan"), 0.0)              # not measured: no limit
     assert not near_level_flight(np.radians(30.0), 0.0)      # an upset's attitude
     assert not near_level_flight(0.0, np.radians(20.0))      # an upset's pitch rate
+    assert near_level_flight(0.1, 0.0, np.radians(12.0))     # a climb's, read through noise
+    assert not near_level_flight(0.1, 0.0, np.radians(33.0))  # a stalled wing at 6 deg of pitch
     est = load_estimator("aerosonde-catalogue")
     filt = build_filter("RJMRPF", est, np.random.default_rng(0), particles=50)
     rows = est.measurements
@@ -309,3 +324,6 @@ def test_the_pitot_is_read_near_level_flight_only():
     assert filt.rows.split(y, mask, np.array([-0.02, 0.5]))[1][-1]
     y[rows.index("theta")] = np.radians(40.0)
     assert not filt.rows.split(y, mask, np.array([-0.02, 0.5]))[1][-1]   # the row is masked
+    y[rows.index("theta")] = 0.05
+    y[rows.index("u")], y[rows.index("w")] = 32.0, 21.0                  # 33 deg of angle of attack
+    assert not filt.rows.split(y, mask, np.array([-0.02, 0.5]))[1][-1]
