@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 TEST_WORKERS ?= 2
 STAMP  := $(VENV)/.installed
-# numpy's AVX2 kernels on every machine, AVX-512 ones too: the same bits everywhere (docs/replay.md)
+# numpy's AVX2 kernels on every machine, AVX-512 ones too: the same bits everywhere (docs/recording.md, "Same bits on other machines")
 export NPY_DISABLE_CPU_FEATURES ?= X86_V4 AVX512_ICL AVX512_SPR
 
 .PHONY: demo test lint bench clean venv
