@@ -207,7 +207,7 @@ class KinematicProcess:
         if self.moment is not None:
             de = self._elevator_of(X, float(u[0]))
             V = self._airspeed(X, float(u[4]))
-            alpha_air = self._stalled_alpha(X, vu, vw)
+            alpha_air = self._stalled_alpha(V if np.ndim(V) == 1 else vu, vw)
             self.stall_share = None if alpha_air is None else self.moment.stall_share(alpha_air)
             if alpha_air is not None and np.ndim(V) == 1:
                 V = np.hypot(V, vw)              # the whole air-relative speed, not its u part
@@ -218,13 +218,13 @@ class KinematicProcess:
     """rad: the velocity's angle of attack is looked at once some particle's is within this of the
     stall angle (the stall share is below 5e-5 there at M = 50: below it the lift's read stands)."""
 
-    def _stalled_alpha(self, X: np.ndarray, vu: np.ndarray, vw: np.ndarray) -> np.ndarray | None:
-        """The angle of attack of each particle's air-relative velocity (N,) rad, atan2(w, u + W)
-        (W the pitot's head wind, else none), when the moment is stall-aware and some particle is
-        near or past the stall; None otherwise (the lift's read alone, bit for bit)."""
+    def _stalled_alpha(self, ua: np.ndarray, vw: np.ndarray) -> np.ndarray | None:
+        """The angle of attack of each particle's air-relative velocity (N,) rad, atan2(w, ua) with
+        ua = u + W (`_airspeed`'s per particle, W the pitot's head wind) or u, when the moment is
+        stall-aware and some particle is near or past the stall; None otherwise (the lift's read
+        alone, bit for bit)."""
         if not self.moment.stall_aware:
             return None
-        ua = vu if self.pitot is None or self.pitot.mean is None else vu + X[N_AIRFRAME + self.pitot.wind]
         alpha = np.arctan2(vw, ua)
         if not np.abs(alpha).max() > self.moment.p.alpha0 - self.STALL_MARGIN:
             return None
