@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from fdir_service.errors import ConfigError
-from fdir_service.estimation.correction import ALTITUDE_GAINS, GAIN_COVARIANCES
+from fdir_service.estimation.correction import ALTIMETER_GAINS, ALTITUDE_GAINS, GAIN_COVARIANCES
 from fdir_service.estimation.recipes import FILTER_NAMES
 from fdir_service.paths import airframe_path, estimator_path
 from fdir_service.tomltable import (
@@ -206,6 +206,9 @@ class FilterSettings:
     #                                      of its pitch rates | "spread" (drawn between dt q and dt q+)
     moment_alpha: str = "lift"           # the pitching moment's angle of attack: "lift" (read from a_z) |
     #                                      "stall_blend" (the velocity's past the airframe's stall angle)
+    moment_wind: str = "entry"           # the moment's head wind under a biased pitot: "entry" (the pitot
+    #                                      entry, wind plus offset: the reading) | "fault_free" (the wind
+    #                                      the exits return to)
     wind_gust_sigma: float = 1.5         # m/s: the head wind's gusts about its mean (pitot.PitotRow) ...
     wind_gust_tau_s: float = 10.0        # ... and their correlation time L_u / V (MIL-F-8785C, moderate)
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
@@ -214,6 +217,8 @@ class FilterSettings:
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
     #                                      innovations may move the altitude in the Kalman correction
     gain_covariance: str = "cloud"       # "cloud" | "within_mode": the Kalman gain's covariance
+    altimeter_gain: str = "all_states"   # "all_states" | "altitude": which states the altimeters'
+    #                                      innovations may move in the Kalman correction
     imm: ImmSettings = field(default_factory=ImmSettings)
     gating: GatingSettings = field(default_factory=GatingSettings)
 
@@ -458,7 +463,8 @@ _CHOICES = {
     "az_input": ("frame_end", "frame_mean"), "velocity_step": ("euler", "rotation"),
     "frame_angle": ("trapezoid", "spread"),
     "moment_alpha": ("lift", "stall_blend"),
-    "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES,
+    "moment_wind": ("entry", "fault_free"),
+    "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES, "altimeter_gain": ALTIMETER_GAINS,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
 
@@ -545,13 +551,14 @@ def _check_learned_noise(settings: FilterSettings, rows: tuple[str, ...]) -> Non
 KINEMATIC_PARTS = {"az_input": "pairs the accelerometer the kinematic model integrates",
                    "velocity_step": "is the kinematic model's body-velocity step",
                    "frame_angle": "is the kinematic model's pitch angle over a frame",
-                   "moment_alpha": "is the kinematic model's pitching-moment angle of attack"}
+                   "moment_alpha": "is the kinematic model's pitching-moment angle of attack",
+                   "moment_wind": "is the kinematic model's pitching-moment head wind"}
 """[parts] settings only the kinematic model has (their first value is every model's default)."""
 
 
 def _check_kinematic_parts(settings: FilterSettings) -> None:
-    """parts.az_input, velocity_step, frame_angle and moment_alpha other than their defaults need
-    the kinematic model."""
+    """parts.az_input, velocity_step, frame_angle, moment_alpha and moment_wind other than their
+    defaults need the kinematic model."""
     for key, what in KINEMATIC_PARTS.items():
         value = getattr(settings, key)
         if value != _CHOICES[key][0] and settings.process_model != "kinematic":

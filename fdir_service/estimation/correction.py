@@ -166,6 +166,21 @@ ALTITUDE_GAINS = ("all_rows", "altimeters", "no_pitch_rate")
 correction: every row; only the rows that measure it; every row but the gyro's (state 4)."""
 
 
+AIRFRAME_STATES = 5
+"""[p_d, u, w, theta, q] lead the extended state (`layout.N_AIRFRAME`; not imported: the config
+module imports this one)."""
+ALTIMETER_GAINS = ("all_states", "altitude")
+"""parts.altimeter_gain: which states the altimeters' innovations (rows measuring the altitude)
+may move in the Kalman correction: every state; only the altitude (and the fault entries)."""
+
+
+def altimeter_gain_cut(H: np.ndarray, altimeter_gain: str) -> np.ndarray | None:
+    """(m,) bool: the rows of H (m, n) whose gain on u, w, theta and q is zeroed; None: none."""
+    if altimeter_gain == "altitude":
+        return H[:, 0] != 0.0
+    return None
+
+
 def altitude_gain_cut(H: np.ndarray, altitude_gain: str) -> np.ndarray | None:
     """(m,) bool: the rows of H (m, n) whose gain on the altitude is zeroed; None: none."""
     if altitude_gain == "altimeters":
@@ -193,14 +208,17 @@ class KalmanCorrection:
     the barometer (docs/robustness.md, "A gain from within each hypothesis")."""
 
     def __init__(self, pin, hold_mode0_faults: bool = False, altitude_gain: str = "all_rows",
-                 covariance: str = "cloud") -> None:
+                 covariance: str = "cloud", altimeter_gain: str = "all_states") -> None:
         self.pin = pin
         self.hold_mode0_faults = bool(hold_mode0_faults)
         if altitude_gain not in ALTITUDE_GAINS:
             raise ValueError(f"altitude_gain {altitude_gain!r}: expected one of {ALTITUDE_GAINS}")
         if covariance not in GAIN_COVARIANCES:
             raise ValueError(f"covariance {covariance!r}: expected one of {GAIN_COVARIANCES}")
+        if altimeter_gain not in ALTIMETER_GAINS:
+            raise ValueError(f"altimeter_gain {altimeter_gain!r}: expected one of {ALTIMETER_GAINS}")
         self.altitude_gain = altitude_gain
+        self.altimeter_gain = altimeter_gain
         self.within_mode = covariance == "within_mode"
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
@@ -212,6 +230,9 @@ class KalmanCorrection:
         cut = altitude_gain_cut(mm.H, self.altitude_gain)
         if cut is not None:
             K[0, cut] = 0.0
+        reach = altimeter_gain_cut(mm.H, self.altimeter_gain)
+        if reach is not None:
+            K[1:AIRFRAME_STATES, reach] = 0.0
         innov = frame.yv[:, None] - mm.H @ X
         ll = gaussian_loglik(innov, S_inv)
         dX = K @ innov

@@ -381,7 +381,7 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
         predict=_predictor(rec, estimator, process, q_std),
         jump=jump, sentinel_weighting=sentinels,
         correction=(KalmanCorrection(jump.pin, rec.has_modes and est.mode0 == "drift",
-                                     est.altitude_gain, est.gain_covariance)
+                                     est.altitude_gain, est.gain_covariance, est.altimeter_gain)
                     if rec.correction == "kalman" else Likelihood()),
         resample_due=EveryStep() if every else BelowEffectiveSize(est.resample_threshold),
         resampler=resampler("systematic" if every else est.resampler),
@@ -454,5 +454,5 @@ def build_filter(name: str, estimator: EstimatorConfig, rng: np.random.Generator
             filt.wind.use_memory(memory)
         process = filt.parts.predict.process
         if isinstance(process, KinematicProcess):
-            process.use_wind(filt.wind)
+            process.use_wind(filt.wind, estimator.settings.moment_wind == "fault_free")
     return filt

@@ -144,16 +144,26 @@ class KinematicProcess:
             gain = self.dt * moment.scale(v_ref) * moment.elevator_gain
             self.B_actuator[4, self._elevator] = gain      # theta takes it at close_frame
 
-    def use_wind(self, pitot) -> None:
+    def use_wind(self, pitot, fault_free: bool = False) -> None:
         """Take each particle's own airspeed u + W from the pitot's wind (a `pitot.PitotRow`) once
-        it has started: a particle that holds the pitot faulty then predicts the pitching moment of
-        the airspeed it believes, not of the reading."""
+        it has started: a particle that holds the pitot blocked then predicts the pitching moment
+        of the airspeed it believes, not of the reading. fault_free (parts.moment_wind =
+        "fault_free"): a particle that holds the pitot biased takes the fault-free wind too
+        (`pitot.PitotRow.fault_free_wind`) rather than its entry, the wind plus the offset, whose
+        u + W is the biased reading."""
         self.pitot = pitot
+        self.fault_free_wind = bool(fault_free)
 
-    def _airspeed(self, X: np.ndarray, V: float):
-        """The pitching moment's airspeed (m/s): the trusted reading V, or per particle u + W."""
+    fault_free_wind = False
+    """parts.moment_wind = "fault_free" (`use_wind`)."""
+
+    def _airspeed(self, X: np.ndarray, V: float, modes: np.ndarray | None = None):
+        """The pitching moment's airspeed (m/s): the trusted reading V, or per particle u + W;
+        modes (nf, N) bool: the cloud's fault modes (needed by parts.moment_wind = "fault_free")."""
         if self.pitot is None or self.pitot.mean is None:
             return V
+        if self.fault_free_wind and modes is not None:
+            return X[1] + self.pitot.fault_free_wind(X, modes)
         return X[1] + X[N_AIRFRAME + self.pitot.wind]
 
     def _elevator_of(self, X: np.ndarray, de: float):
@@ -184,8 +194,12 @@ class KinematicProcess:
         out[2] += h * (G * tilt * c - p * v)
         out[3] += h * (tilt * q - r * np.sin(phi))
 
-    def propagate(self, X: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (4,)."""
+    takes_modes = True
+    """`propagate` takes the cloud's fault modes (the predict passes them: `_airspeed`)."""
+
+    def propagate(self, X: np.ndarray, u: np.ndarray, modes: np.ndarray | None = None) -> np.ndarray:
+        """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (4,); modes
+        (nf, N) bool or None: the cloud's fault modes (the moment's wind, `_airspeed`)."""
         one = X.ndim == 1
         if one:
             X = X[:, None]
@@ -206,7 +220,7 @@ class KinematicProcess:
             self._add_body_rate_terms(out, u, q, c)
         if self.moment is not None:
             de = self._elevator_of(X, float(u[0]))
-            V = self._airspeed(X, float(u[4]))
+            V = self._airspeed(X, float(u[4]), None if one else modes)
             alpha_air = self._stalled_alpha(V if np.ndim(V) == 1 else vu, vw)
             self.stall_share = None if alpha_air is None else self.moment.stall_share(alpha_air)
             if alpha_air is not None and np.ndim(V) == 1:

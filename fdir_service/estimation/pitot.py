@@ -136,6 +136,15 @@ class PitotRow:
         as the wind's expected value while a pitot fault holds it (`_evolve_memory`)."""
         self.memory = memory
 
+    def fault_free_wind(self, X: np.ndarray, modes: np.ndarray) -> np.ndarray:
+        """Each particle's head wind W (N,) m/s: its wind entry where that is in mode 0, else the
+        fault-free value the entry's exit returns to (`use_memory`; the entry itself without one),
+        the wind the gust model expects while a pitot bias holds the entry (wind plus offset)."""
+        W = X[N_AIRFRAME + self.wind]
+        if self.memory is None:
+            return W
+        return np.where(modes[self.wind], self.memory.value[self.wind], W)
+
     def command(self, throttle: float, level: bool = True) -> None:
         """This frame's throttle command (0..1, NaN: unknown) and whether the aircraft flies near
         level (`near_level_flight`): whether the autopilot can hold the airspeed (off the throttle's

@@ -68,7 +68,10 @@ class DriftPredict(GaussianPredict):
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:
-        X = self.process.propagate(X, u)
+        if getattr(self.process, "takes_modes", False):
+            X = self.process.propagate(X, u, modes)
+        else:
+            X = self.process.propagate(X, u)
         noise = rng.standard_normal(X.shape)
         noise[:N_AIRFRAME] *= self.q_std[:N_AIRFRAME]
         noise[N_AIRFRAME:] *= np.where(modes, self.q_std[N_AIRFRAME:], self.drift_std)

@@ -257,6 +257,31 @@ def test_the_pitch_rate_row_alone_can_be_kept_from_moving_the_altitude():
     np.testing.assert_allclose(gated[1:], plain[1:])
 
 
+def test_the_altimeters_can_be_kept_to_the_altitude():
+    """parts.altimeter_gain = "altitude": a GNSS (altimeter) innovation moves the altitude as the
+    full correction does, but no longer u, w, theta or q, which the cloud's covariance with the
+    altitude would have bent towards a drifting altimeter; the other rows' gains are the same."""
+    layout = FaultLayout(("w",), ("sensor",), ("w",), ("gnss_alt", "w"))
+    meas = MeasurementModel.build(layout, np.array([1.5, 1.5]))
+    rng = np.random.default_rng(8)
+    X = rng.standard_normal((layout.n, 500)) * np.array([[3.0], [0.5], [0.5], [0.01], [0.02], [0.0]])
+    X[0] -= 5.0 * X[2]                                  # altitude and w correlated (h integrates -w)
+    w = np.full(500, 1 / 500)
+    modes = np.zeros((1, 500), bool)
+    frame = Frame.of(1.0, np.array([-(X[0] @ w) + 4.0, X[2] @ w]), np.ones(2, bool), np.zeros(2), meas)
+    higher = Frame.of(1.0, frame.yv - np.array([10.0, 0.0]), np.ones(2, bool), np.zeros(2), meas)
+    plain, kept, kept_higher = X.copy(), X.copy(), X.copy()
+    KalmanCorrection(lambda X, m: None).update(plain, w, modes, frame)
+    KalmanCorrection(lambda X, m: None, altimeter_gain="altitude").update(kept, w, modes, frame)
+    KalmanCorrection(lambda X, m: None, altimeter_gain="altitude").update(kept_higher, w, modes, higher)
+    assert abs((plain[2] - X[2]) @ w) > 0.1                          # 4 m of altimeter moved w ...
+    np.testing.assert_array_equal(kept_higher[1:5], kept[1:5])       # ... kept: 10 m more moves none
+    np.testing.assert_allclose(kept[0], plain[0])                    # h as the full correction's
+    assert (kept_higher[0] - kept[0]) @ w > 1.0                      # and the altitude takes it
+    with pytest.raises(ValueError, match="altimeter_gain"):
+        KalmanCorrection(lambda X, m: None, altimeter_gain="some")
+
+
 def test_the_within_mode_covariance_pools_each_hypothesis_spread_about_its_own_mean():
     """Two patterns holding 1/3 and 2/3 of the weight are spread about their own means; a
     particle alone in its pattern (a sentinel, under HYPOTHESIS_SHARE) about the cloud's."""
