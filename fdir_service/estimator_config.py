@@ -214,6 +214,8 @@ class FilterSettings:
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
     wind_hold: float = 0.0               # 0..1: the share of a ground-speed change that is the wind's
     held_airspeed_sigma: float = 0.5     # m/s: the airspeed's gusts an airspeed hold lets through
+    hold_resume: str = "cloud"           # the held airspeed when the hold takes over again under a
+    #                                      declared pitot: "cloud" (every particle's) | "held" (as before)
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
     #                                      innovations may move the altitude in the Kalman correction
     gain_covariance: str = "cloud"       # "cloud" | "within_mode": the Kalman gain's covariance
@@ -464,6 +466,7 @@ _CHOICES = {
     "frame_angle": ("trapezoid", "spread"),
     "moment_alpha": ("lift", "stall_blend"),
     "moment_wind": ("entry", "fault_free"),
+    "hold_resume": ("cloud", "held"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES, "altimeter_gain": ALTIMETER_GAINS,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""

@@ -101,7 +101,7 @@ class PitotRow:
 
     def __init__(self, entries: np.ndarray, wind: int, held: np.ndarray, row: int, sigma: float,
                  dt: float = 0.05, gust: tuple[float, float, float] = (1.5, 10.0, 60.0),
-                 hold: float = 0.0, free_sigma: float | None = None) -> None:
+                 hold: float = 0.0, free_sigma: float | None = None, resume_held: bool = False) -> None:
         self.entries = np.asarray(entries, dtype=int)
         self.wind = int(wind)
         self.held = np.asarray(held, dtype=int)
@@ -130,6 +130,11 @@ class PitotRow:
         """m/s: the pitot's estimated fault after the last step (`follow`)."""
         self.memory = None
         """The jump's `jump.DriftMemory` (parts.mode0 = "drift"; `use_memory`), or None."""
+        self.resume_held = bool(resume_held)
+        """parts.hold_resume = "held": when the hold takes over again and the fault-free particles
+        are not most of the cloud, M returns to the held airspeed the let-go left (`_kappa`)."""
+        self.held_mean: float | None = None
+        """m/s: M as the hold last let go (the airspeed it held), or None."""
 
     def use_memory(self, memory) -> None:
         """The fault-free values that exits return to (a `jump.DriftMemory`): its wind entry moves
@@ -202,11 +207,18 @@ class PitotRow:
     def _kappa(self, W: np.ndarray, u: np.ndarray, fault_free: np.ndarray) -> float:
         """This step's kappa: `hold`, or 0 while the throttle has no authority (`command`); when it
         changes, M becomes the mean of the new c = W + kappa u (the fault-free particles', if they
-        are most of the cloud; else every particle's)."""
+        are most of the cloud; else every particle's, or with `resume_held` the airspeed held
+        before the let-go when the hold takes over again: with the pitot declared, every
+        particle's mean took the biased and blocked particles' winds, 2.5 m/s off in real-engine
+        run 96, and M, which then follows only fault-free particles, never came back)."""
         kappa = self.hold if self.authority else 0.0
         if kappa != self.kappa:
+            if self.kappa == self.hold:
+                self.held_mean = self.mean
             c = self._held_sum(W, u, kappa)
             mean = self._fault_free_mean(c, fault_free)
+            if mean is None and kappa == self.hold and self.resume_held and self.held_mean is not None:
+                mean = self.held_mean
             self.mean = float(c.mean()) if mean is None else mean
             self.kappa = kappa
         return kappa
@@ -280,4 +292,5 @@ def pitot_row(estimator) -> PitotRow:
     sigma = estimator.sigma[estimator.measurements.index("airspeed")]
     return PitotRow(np.array(entries), wind_entry(faults), np.array(held, dtype=int),
                     estimator.observed.index("airspeed"), sigma, estimator.dt_s,
-                    (gust_sigma(s), s.wind_gust_tau_s, s.wind_mean_tau_s), s.wind_hold, s.wind_gust_sigma)
+                    (gust_sigma(s), s.wind_gust_tau_s, s.wind_mean_tau_s), s.wind_hold, s.wind_gust_sigma,
+                    s.hold_resume == "held")

@@ -192,6 +192,38 @@ def test_at_full_throttle_the_hold_lets_go_and_takes_the_airspeed_it_finds_when_
     assert part.authority
 
 
+def resumed_mean(resume_held: bool, pitot_declared: bool) -> float:
+    """M after the hold lets go at full throttle for 1 s and takes over again 3 s later, the
+    particles' u + W then 43 m/s (their winds 11, the ground speed 32)."""
+    part = PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, dt=0.05,
+                    gust=(0.0, 10.0, 1e9), hold=1.0, free_sigma=0.0, resume_held=resume_held)
+    part.mean = 40.0                                 # the held airspeed
+    X = cloud(4)
+    modes = np.zeros((LAYOUT.nf, 4), dtype=bool)
+    rng = np.random.default_rng(4)
+    part.command(1.0)
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), rng)
+    X[N_AIRFRAME + WIND] = 11.0
+    modes[BLK, :3 if pitot_declared else 1] = True   # three of four particles hold the pitot blocked
+    for _ in range(int(round(HOLD_SETTLE_S / 0.05))):
+        part.command(0.6)
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), rng)
+    assert part.kappa == 1.0
+    return part.mean
+
+
+def test_with_the_pitot_declared_the_resumed_hold_returns_to_the_airspeed_it_held():
+    """parts.hold_resume = "held": with the fault-free particles most of the cloud M is their mean
+    of u + W either way; without them, every particle's mean took the blocked and biased winds
+    (42.5 m/s where the pitot read 40 in real-engine run 96, and M, following only fault-free
+    particles, never came back): M returns to the airspeed held before the let-go."""
+    assert resumed_mean(False, pitot_declared=False) == pytest.approx(43.0)
+    assert resumed_mean(True, pitot_declared=False) == pytest.approx(43.0)
+    assert resumed_mean(False, pitot_declared=True) == pytest.approx(43.0)
+    assert resumed_mean(True, pitot_declared=True) == pytest.approx(40.0)
+    assert load_estimator("aerosonde-catalogue").settings.hold_resume == "held"
+
+
 def test_in_an_upset_the_hold_lets_go_until_the_airspeed_loop_has_settled():
     part = PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, dt=0.05,
                     gust=(0.0, 10.0, 1e9), hold=1.0, free_sigma=0.0)
