@@ -173,10 +173,11 @@ def test_an_attitude_ramp_is_named_a_drift_and_seldom_anything_else(climb):
     handing over to the bias and the stuck entries at 0.01 a step, as often as they hand over to
     it, the pair kept about half of P(theta) and the drift was named on 3 of 8 (docs/faults.md,
     "Hand-overs out of a drift"). Until stop 48 this test flew seeds 1-4 and asked for no other
-    type at all; on seeds 1-8 the catalogue of stop 47 named 13 drifts, 1 "type unclear"
-    throughout and 2 drifts handed on (-0.5 deg/s, seeds 5 and 6: a drift proposed at +0.02 deg/s,
-    then stuck; an offset), and stop 48's (the moment's fault-free wind) 15 drifts and 1 handed on
-    (-0.5 deg/s, seed 1: +0.01 deg/s, then stuck at 34.9 s). A young ramp whose rate is proposed
+    type at all. On seeds 1-8 the catalogue of stop 47 named a drift in 15 of the 16 (one "type
+    unclear" throughout) and 2 of those drifts were handed on (-0.5 deg/s, seeds 5 and 6: a drift
+    at +0.02 deg/s, then stuck; a drift, then an offset); stop 48's (the moment's fault-free wind)
+    named a drift in all 16, and 1 was handed on (-0.5 deg/s, seed 1: +0.01 deg/s, then stuck at
+    34.9 s). A young ramp whose rate is proposed
     near zero reads as a held value; which seeds it hits moves with any change of the cloud's
     random stream."""
     sc, tr, y, mask = climb
