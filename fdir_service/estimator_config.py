@@ -216,6 +216,8 @@ class FilterSettings:
     held_airspeed_sigma: float = 0.5     # m/s: the airspeed's gusts an airspeed hold lets through
     hold_resume: str = "cloud"           # the held airspeed when the hold takes over again under a
     #                                      declared pitot: "cloud" (every particle's) | "held" (as before)
+    fault_free_memory: str = "entry"     # the fault-free value exits return to, from the particles whose
+    #                                      entry is in mode 0 ("entry") | whose whole item is ("item")
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
     #                                      innovations may move the altitude in the Kalman correction
     gain_covariance: str = "cloud"       # "cloud" | "within_mode": the Kalman gain's covariance
@@ -467,6 +469,7 @@ _CHOICES = {
     "moment_alpha": ("lift", "stall_blend"),
     "moment_wind": ("entry", "fault_free"),
     "hold_resume": ("cloud", "held"),
+    "fault_free_memory": ("entry", "item"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES, "altimeter_gain": ALTIMETER_GAINS,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""

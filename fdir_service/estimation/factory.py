@@ -44,6 +44,7 @@ from fdir_service.estimation.jump import (
     FaintExit,
     FixedTransition,
     FoldArming,
+    ItemDriftMemory,
     MarkovJump,
     NoCarry,
     NoFold,
@@ -325,6 +326,8 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     switch = TypeSwitch(pairs, estimator.switch_rates(), evolution, layout.sensor_row) \
         if pairs.size or evolution.stuck.size else None
     parts.jump.use_types(switch)
+    if estimator.settings.fault_free_memory == "item" and parts.jump.drift is not None:
+        parts.jump.drift = ItemDriftMemory(_same_item(layout))
     parts.predict = TypedPredict(parts.predict, evolution, layout)
     noisy = evolution.noisy
     rows = np.maximum(layout.sensor_row, layout.noisy_row)
@@ -336,6 +339,12 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         parts.sentinel_weighting = NoisySentinels(parts.sentinel_weighting, noisy,
                                                   np.minimum(0.5, high), high)
     return _drift(parts, estimator, layout, meas, N)
+
+
+def _same_item(layout: FaultLayout) -> np.ndarray:
+    """(nf, nf) bool: the fault entries on the same item (kind and target), the diagonal included."""
+    items = list(zip(layout.kinds, layout.targets, strict=True))
+    return np.array([[a == b for b in items] for a in items], dtype=bool)
 
 
 def _row_siblings(layout: FaultLayout, entries: np.ndarray) -> np.ndarray:

@@ -124,6 +124,28 @@ class DriftMemory:
         return self.value
 
 
+class ItemDriftMemory(DriftMemory):
+    """A `DriftMemory` kept from the particles whose whole item is fault-free (parts.fault_free_memory
+    = "item"): a particle that holds another type of the entry's item in mode 1 (a stuck or blocked
+    reading) leaves this entry in mode 0 but unobserved, and its value is no estimate of the
+    sensor's fault-free error. The pitot's wind entry of a blocked particle wanders with the gust
+    model; at an engine's return in real-engine run 63 those winds made the memory's airspeed
+    42.3 m/s where the pitot read 40 (docs/faults.md, "The held airspeed after a let-go").
+
+    item (nf, nf): 1 where two entries are on the same item (a measurement row or an input), the
+    diagonal included."""
+
+    def __init__(self, item: np.ndarray) -> None:
+        super().__init__(item.shape[0])
+        self.item = np.asarray(item, dtype=float)
+
+    def update(self, F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Take this step's item-fault-free means where those particles have > half the weight."""
+        mean, share = mode0_mean(F, (self.item @ modes) > 0.0, w)
+        np.copyto(self.value, mean, where=share > 0.5)
+        return self.value
+
+
 class NoCarry:
     """Actuator sentinels keep their airframe state (parts.actuator_sentinel = "thesis")."""
 

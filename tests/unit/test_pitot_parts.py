@@ -17,7 +17,7 @@ from fdir_service.estimation.factory import build_filter
 from fdir_service.estimation.fault_types import TypedEvolution, TypeSwitch, sibling_pairs
 from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.inputs import G
-from fdir_service.estimation.jump import DriftMemory
+from fdir_service.estimation.jump import DriftMemory, ItemDriftMemory
 from fdir_service.estimation.kinematic import KinematicProcess, PitchMoment
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
@@ -392,3 +392,23 @@ def test_a_biased_pitot_particle_flies_the_moment_on_the_fault_free_wind():
     assert abs(q_plain[1] - q_plain[0]) > 0.01       # rad/s a frame: the biased reading's moment
     np.testing.assert_array_equal(fair.propagate(X, u)[4], q_plain)   # no modes: the entry
     assert load_estimator("aerosonde-catalogue").settings.moment_wind == "fault_free"
+
+
+def test_the_item_memory_keeps_the_wind_of_particles_with_no_pitot_fault():
+    """parts.fault_free_memory = "item" (`jump.ItemDriftMemory`): a blocked particle's wind entry is
+    in mode 0 but unobserved (it wanders with the gust model); the fault-free wind exits return to
+    is the mean over the particles whose pitot has no fault of any type, while they hold most of
+    the weight, and stays otherwise."""
+    F = np.zeros((LAYOUT.nf, 4))
+    F[WIND] = [8.0, 8.2, 11.0, 11.0]                  # two blocked particles' winds wandered off
+    modes = np.zeros((LAYOUT.nf, 4), dtype=bool)
+    modes[BLK, 2:] = True
+    w = np.array([0.3, 0.3, 0.2, 0.2])
+    same = np.array([[1, 1, 0], [1, 1, 0], [0, 0, 1]], dtype=float)
+    entry, item = DriftMemory(LAYOUT.nf), ItemDriftMemory(same)
+    assert entry.update(F, modes, w)[WIND] == pytest.approx(9.26)        # the blocked winds pulled in
+    assert item.update(F, modes, w)[WIND] == pytest.approx(8.1)          # only the fault-free pitots'
+    modes[BLK, 1] = True                              # 0.3 of the weight left with no pitot fault
+    F[WIND, 0] = 5.0
+    assert item.update(F, modes, w)[WIND] == pytest.approx(8.1)          # no majority: kept
+    assert load_estimator("aerosonde-catalogue").settings.fault_free_memory == "entry"
