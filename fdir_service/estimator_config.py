@@ -215,7 +215,8 @@ class FilterSettings:
     wind_hold: float = 0.0               # 0..1: the share of a ground-speed change that is the wind's
     held_airspeed_sigma: float = 0.5     # m/s: the airspeed's gusts an airspeed hold lets through
     hold_resume: str = "cloud"           # the held airspeed when the hold takes over again under a
-    #                                      declared pitot: "cloud" (every particle's) | "held" (as before)
+    #                                      declared pitot: "cloud" (every particle's) | "held" (the
+    #                                      airspeed held before the let-go)
     fault_free_memory: str = "entry"     # the fault-free value exits return to, from the particles whose
     #                                      entry is in mode 0 ("entry") | whose whole item is ("item")
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'

@@ -72,7 +72,8 @@ def test_the_catalogue_turns_the_velocity():
 @pytest.mark.parametrize("key,value,bad", [("az_input", "frame_mean", "frame_start"),
                                            ("velocity_step", "rotation", "rk4"),
                                            ("frame_angle", "spread", "simpson"),
-                                           ("moment_alpha", "stall_blend", "stall")])
+                                           ("moment_alpha", "stall_blend", "stall"),
+                                           ("moment_wind", "fault_free", "reading")])
 def test_only_the_kinematic_model_takes_its_parts_and_a_bad_value_names_the_key(key, value, bad):
     doc, _ = estimator_document("aerosonde")
     doc.setdefault("parts", {})[key] = value
