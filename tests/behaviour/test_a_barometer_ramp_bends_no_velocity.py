@@ -5,7 +5,7 @@ the GNSS's fault-free drift took the 10 m between them: the ramp was never decla
 ended the barometer was declared for 36 s. With "altitude" the altimeters move the altitude
 alone, the ramp is declared a drift while it runs and nothing stands after it
 (`correction.KalmanCorrection`, docs/faults.md, "The altimeters move the altitude only"). Not the
-catalogue's default: over real-drift's 100 flights it raised more false alarms (26 against 20),
+catalogue's default: over real-drift's 100 flights it raised more false alarms (26 against 21),
 an attitude drift then bending the altitude with no altimeter to straighten the attitude.
 
 real-drift run 18 (campaign seed 0), the autopilot on the monitor's estimate, to 90 s: the ramp
