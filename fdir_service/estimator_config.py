@@ -219,6 +219,8 @@ class FilterSettings:
     #                                      airspeed held before the let-go)
     fault_free_memory: str = "entry"     # the fault-free value exits return to, from the particles whose
     #                                      entry is in mode 0 ("entry") | whose whole item is ("item")
+    drift_window: str = "offset"         # a new drift rate's window: the offset against the cloud
+    #                                      ("offset") | the altimeters' against the readings' climb ("climb")
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
     #                                      innovations may move the altitude in the Kalman correction
     gain_covariance: str = "cloud"       # "cloud" | "within_mode": the Kalman gain's covariance
@@ -471,6 +473,7 @@ _CHOICES = {
     "moment_wind": ("entry", "fault_free"),
     "hold_resume": ("cloud", "held"),
     "fault_free_memory": ("entry", "item"),
+    "drift_window": ("offset", "climb"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES, "altimeter_gain": ALTIMETER_GAINS,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""

@@ -99,6 +99,44 @@ class OffsetSlope:
         return b, se
 
 
+class ClimbOffsetSlope(OffsetSlope):
+    """An `OffsetSlope` whose altimeter rows take their offset against the climb the u, w and theta
+    readings integrate to, a = y_r - integral of (u sin(theta) - w cos(theta)) dt, not against the
+    cloud's altitude (parts.drift_window = "climb"): a barometer ramp bends the cloud's altitude
+    towards it, and its slope against that altitude is only what the bending left. Fault-free this
+    offset's change over 3-10 s spreads 1.4-1.6 m (the barometer's own noise) and the readings'
+    climb is 0.016 m/s off on average (real-drift, docs/faults.md, "Stays ambiguous"). Other rows
+    are as `OffsetSlope`'s.
+
+    velocity (3,): the rows of u, w and theta among the measurement rows."""
+
+    def __init__(self, rows: np.ndarray, H: np.ndarray, frames: int, velocity: tuple[int, int, int],
+                 dt: float) -> None:
+        super().__init__(rows, H, frames)
+        self.altimeter = self.h[:, 0] != 0.0
+        self.velocity = tuple(int(r) for r in velocity)
+        self.dt = float(dt)
+        self.climb = 0.0
+        """m: the integral of the readings' climb rate since the first frame."""
+        self.last_rate = 0.0
+
+    def _climb_rate(self, frame: Frame) -> float:
+        """u sin(theta) - w cos(theta) of this frame's readings (m/s), the last one where one is missing."""
+        if all(frame.mask[r] for r in self.velocity):
+            u, w, th = (frame.yv[frame.row_of[r]] for r in self.velocity)
+            self.last_rate = float(u * np.sin(th) - w * np.cos(th))
+        return self.last_rate
+
+    def observe(self, X: np.ndarray, w: np.ndarray, frame: Frame) -> None:
+        """As `OffsetSlope.observe`, with the altimeter rows' offsets against the readings' climb."""
+        self.climb += self.dt * self._climb_rate(frame)
+        super().observe(X, w, frame)
+        i = (self.k - 1) % self.t.size
+        present = frame.mask[self.rows] & self.altimeter
+        y = frame.yv[frame.row_of[self.rows[present]]]
+        self.a[present, i] = y + self.h[present, 0] * self.climb      # h[:, 0] = -1: y - climb
+
+
 class DriftAnchor:
     """A drift that ends re-anchors the state (as a stuck sensor's return does,
     `fault_types.TypeSwitch.anchor`): half the particles whose drift entry leaves mode 1 with no

@@ -16,10 +16,12 @@ import numpy as np
 
 from fdir_service.airframe.linearize import LinearModel, linear_model
 from fdir_service.airframe.params import AirframeParams, load_airframe
+from fdir_service.errors import ConfigError
 from fdir_service.estimation.adaptive import AdaptiveTransition
 from fdir_service.estimation.amplitude import NO_ONSET_STEP, AmplitudePredictor
 from fdir_service.estimation.correction import KalmanCorrection, Likelihood
 from fdir_service.estimation.drift_type import (
+    ClimbOffsetSlope,
     DriftAnchor,
     DriftCorrection,
     DriftJump,
@@ -341,6 +343,19 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     return _drift(parts, estimator, layout, meas, N)
 
 
+def _drift_window(estimator: EstimatorConfig, rows: np.ndarray, meas: MeasurementModel, frames: int):
+    """The window a new drift rate is proposed from: `OffsetSlope`, or with parts.drift_window =
+    "climb" `ClimbOffsetSlope` (the altimeters against the u, w, theta readings' climb)."""
+    if estimator.settings.drift_window != "climb":
+        return OffsetSlope(rows, meas.H, frames)
+    missing = [r for r in ("u", "w", "theta") if r not in estimator.measurements]
+    if missing:
+        raise ConfigError(f"parts.drift_window = \"climb\" integrates the u, w and theta readings: "
+                          f"expected measurements.rows listing them, missing {missing}")
+    velocity = tuple(estimator.measurements.index(r) for r in ("u", "w", "theta"))
+    return ClimbOffsetSlope(rows, meas.H, frames, velocity, estimator.dt_s)
+
+
 def _same_item(layout: FaultLayout) -> np.ndarray:
     """(nf, nf) bool: the fault entries on the same item (kind and target), the diagonal included."""
     items = list(zip(layout.kinds, layout.targets, strict=True))
@@ -371,7 +386,7 @@ def _drift(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         return parts
     sigma = np.array([estimator.faults[j].rate_sigma for j in drift.tolist()])
     rows = layout.sensor_row[drift]
-    window = OffsetSlope(rows, meas.H, int(round(DRIFT_WINDOW_S / estimator.dt_s)))
+    window = _drift_window(estimator, rows, meas, int(round(DRIFT_WINDOW_S / estimator.dt_s)))
     parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window,
                            DriftAnchor(rows, meas.H, _row_siblings(layout, drift)))
     parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])

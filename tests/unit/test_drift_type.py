@@ -10,6 +10,7 @@ import pytest
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.drift_type import (
+    ClimbOffsetSlope,
     DriftAnchor,
     DriftCorrection,
     DriftJump,
@@ -147,6 +148,30 @@ def test_the_offset_window_measures_a_ramps_slope():
         win.observe(X, np.ones(1), frame(k * DT, (500.0 + 0.8 * k * DT + noise[k], 0.0)))
     b, se = win.slope()
     assert abs(b[0] - 0.8) < 3 * se[0] and se[0] < 0.3
+
+
+def test_the_climb_window_sees_a_ramp_the_cloud_followed():
+    """parts.drift_window = "climb" (`ClimbOffsetSlope`): the barometer ramps 1 m/s above a 2 m/s
+    climb and the cloud's altitude has followed it; against the cloud the window sees no slope,
+    against the climb the u, w, theta readings integrate to it sees the ramp."""
+    rows = ("baro_alt", "u", "w", "theta")
+    layout = FaultLayout(("baro_dr",), ("sensor",), ("baro_alt",), rows, ("drift",))
+    meas = MeasurementModel.build(layout, np.array([1.5, 1.5, 1.5, 0.015]))
+    plain = OffsetSlope(np.array([0]), meas.H, 60)
+    climb = ClimbOffsetSlope(np.array([0]), meas.H, 60, (1, 2, 3), DT)
+    theta = np.arcsin(2.0 / 40.0)                      # u = 40 m/s, w = 0: a 2 m/s climb
+    noise = np.random.default_rng(3).normal(0.0, 1.0, 60)
+    for k in range(60):
+        baro = 500.0 + 3.0 * k * DT + noise[k]          # 2 m/s climb + 1 m/s ramp
+        X = np.zeros((layout.n, 1))
+        X[0] = -(500.0 + 3.0 * k * DT)                  # the cloud bent to the barometer
+        f = Frame.of(k * DT, np.array([baro, 40.0, 0.0, theta]), np.ones(4, bool), np.zeros(2), meas)
+        plain.observe(X, np.ones(1), f)
+        climb.observe(X, np.ones(1), f)
+    (b0,), (se0,) = plain.slope()
+    (b1,), (se1,) = climb.slope()
+    assert abs(b0) < 3 * se0 and abs(b1 - 1.0) < 3 * se1 and se1 < 0.3
+    assert load_estimator("aerosonde-catalogue").settings.drift_window == "offset"
 
 
 def test_the_correction_moves_a_lagging_rate_and_its_offset_towards_the_data():
