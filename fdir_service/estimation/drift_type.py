@@ -78,8 +78,12 @@ class OffsetSlope:
         y[present] = frame.yv[frame.row_of[self.rows[present]]]
         i = self.k % self.t.size
         self.t[i] = frame.t
-        self.a[:, i] = y - self.h @ (X[:N_AIRFRAME] @ w)
+        self.a[:, i] = y - self._reference(X, w, frame)
         self.k += 1
+
+    def _reference(self, X: np.ndarray, w: np.ndarray, frame: Frame) -> np.ndarray:
+        """(k,) what each row's offset is taken against: h_r z_bar, the cloud's mean state's reading."""
+        return self.h @ (X[:N_AIRFRAME] @ w)
 
     def slope(self) -> tuple[np.ndarray, np.ndarray]:
         """((k,) slopes, (k,) their standard errors); 0 and inf with fewer than 3 samples."""
@@ -128,14 +132,12 @@ class ClimbOffsetSlope(OffsetSlope):
             self.last_rate = float(u * np.sin(th) - w * np.cos(th))
         return self.last_rate
 
-    def observe(self, X: np.ndarray, w: np.ndarray, frame: Frame) -> None:
-        """As `OffsetSlope.observe`, with the altimeter rows' offsets against the readings' climb."""
+    def _reference(self, X: np.ndarray, w: np.ndarray, frame: Frame) -> np.ndarray:
+        """The altimeter rows' reference is the readings' climb (h[:, 0] = -1: the altitude -p_d);
+        the other rows' the cloud's, as `OffsetSlope`'s."""
         self.climb += self.dt * self._climb_rate(frame)
-        super().observe(X, w, frame)
-        i = (self.k - 1) % self.t.size
-        present = frame.mask[self.rows] & self.altimeter
-        y = frame.yv[frame.row_of[self.rows[present]]]
-        self.a[present, i] = y + self.h[present, 0] * self.climb      # h[:, 0] = -1: y - climb
+        cloud = super()._reference(X, w, frame)
+        return np.where(self.altimeter, -self.h[:, 0] * self.climb, cloud)
 
 
 class DriftAnchor:

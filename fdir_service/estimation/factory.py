@@ -34,6 +34,7 @@ from fdir_service.estimation.fault_types import (
     TypedEvolution,
     TypedPredict,
     TypeSwitch,
+    same_item,
     sibling_pairs,
 )
 from fdir_service.estimation.gating import GatedKF, frozen_fault_scenario
@@ -329,7 +330,7 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         if pairs.size or evolution.stuck.size else None
     parts.jump.use_types(switch)
     if estimator.settings.fault_free_memory == "item" and parts.jump.drift is not None:
-        parts.jump.drift = ItemDriftMemory(_same_item(layout))
+        parts.jump.drift = ItemDriftMemory(same_item(layout))
     parts.predict = TypedPredict(parts.predict, evolution, layout)
     noisy = evolution.noisy
     rows = np.maximum(layout.sensor_row, layout.noisy_row)
@@ -354,12 +355,6 @@ def _drift_window(estimator: EstimatorConfig, rows: np.ndarray, meas: Measuremen
                           f"expected measurements.rows listing them, missing {missing}")
     velocity = tuple(estimator.measurements.index(r) for r in ("u", "w", "theta"))
     return ClimbOffsetSlope(rows, meas.H, frames, velocity, estimator.dt_s)
-
-
-def _same_item(layout: FaultLayout) -> np.ndarray:
-    """(nf, nf) bool: the fault entries on the same item (kind and target), the diagonal included."""
-    items = list(zip(layout.kinds, layout.targets, strict=True))
-    return np.array([[a == b for b in items] for a in items], dtype=bool)
 
 
 def _row_siblings(layout: FaultLayout, entries: np.ndarray) -> np.ndarray:

@@ -240,10 +240,21 @@ class TypedCorrection:
         return (-0.5 * e * e * (1.0 / v1 - 1.0 / v0) - 0.5 * np.log(v1 / v0)).sum(axis=0)
 
 
+def item_keys(layout: FaultLayout) -> list[tuple[str, str]]:
+    """(nf,) each fault entry's item: its kind and target (a measurement row, or an input)."""
+    return list(zip(layout.kinds, layout.targets, strict=True))
+
+
+def same_item(layout: FaultLayout) -> np.ndarray:
+    """(nf, nf) bool: the fault entries on the same item, the diagonal included."""
+    items = item_keys(layout)
+    return np.array([[a == b for b in items] for a in items], dtype=bool)
+
+
 def sibling_pairs(layout: FaultLayout) -> np.ndarray:
     """(p, 2) ordered pairs (a, b) of additive fault entries of different types on the same item
     (a measurement row, or an input): the hand-overs `TypeSwitch` may make."""
-    items = [(k, t) for k, t in zip(layout.kinds, layout.targets, strict=True)]
+    items = item_keys(layout)
     additive = [j for j in range(layout.nf) if layout.type_of(j) != "noisy"]
     pairs = [(a, b) for a in additive for b in additive
              if a != b and items[a] == items[b] and layout.type_of(a) != layout.type_of(b)]

@@ -194,9 +194,6 @@ class KinematicProcess:
         out[2] += h * (G * tilt * c - p * v)
         out[3] += h * (tilt * q - r * np.sin(phi))
 
-    takes_modes = True
-    """`propagate` takes the cloud's fault modes (the predict passes them: `_airspeed`)."""
-
     def propagate(self, X: np.ndarray, u: np.ndarray, modes: np.ndarray | None = None) -> np.ndarray:
         """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (4,); modes
         (nf, N) bool or None: the cloud's fault modes (the moment's wind, `_airspeed`)."""

@@ -1,7 +1,8 @@
 """Predict parts: the process model plus Gaussian process noise (SPEC section 5, thesis Alg. 2.8 step 1).
 
 Each takes the cloud X (n, N), the modes (nf, N) bool, the input u (2,) and the filter's
-generator, and returns the predicted cloud (a new array; X is not modified).
+generator, and returns the predicted cloud (a new array; X is not modified). The process model's
+`propagate(X, u, modes)` gets the modes too (the kinematic moment's wind, parts.moment_wind).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ class GaussianPredict:
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:
-        X = self.process.propagate(X, u)
+        X = self.process.propagate(X, u, modes)
         noise = rng.standard_normal(X.shape)
         noise *= self.q_std
         X += noise
@@ -36,7 +37,7 @@ class ModeGatedPredict(GaussianPredict):
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:
-        X = self.process.propagate(X, u)
+        X = self.process.propagate(X, u, modes)
         N = X.shape[1]
         noise = rng.standard_normal((N_AIRFRAME, N))
         noise *= self.q_std[:N_AIRFRAME]
@@ -68,10 +69,7 @@ class DriftPredict(GaussianPredict):
 
     def predict(self, X: np.ndarray, modes: np.ndarray, u: np.ndarray,
                 rng: np.random.Generator) -> np.ndarray:
-        if getattr(self.process, "takes_modes", False):
-            X = self.process.propagate(X, u, modes)
-        else:
-            X = self.process.propagate(X, u)
+        X = self.process.propagate(X, u, modes)
         noise = rng.standard_normal(X.shape)
         noise[:N_AIRFRAME] *= self.q_std[:N_AIRFRAME]
         noise[N_AIRFRAME:] *= np.where(modes, self.q_std[N_AIRFRAME:], self.drift_std)

@@ -65,8 +65,9 @@ class LinearProcess(WholeFrameStep):
         """Constant term c(u) (n,) of x_{k+1} = F x_k + c(u)."""
         return self._c0 + self.B @ np.asarray(u, dtype=float)
 
-    def propagate(self, X: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (2,)."""
+    def propagate(self, X: np.ndarray, u: np.ndarray, modes: np.ndarray | None = None) -> np.ndarray:
+        """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (2,); modes: the
+        cloud's fault modes, which this model does not use."""
         c = self.offset(u)
         if X.ndim == 1:
             return self.F @ X + c
@@ -151,8 +152,9 @@ class NonlinearProcess(WholeFrameStep):
             out[i] = r
         return out
 
-    def propagate(self, X: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (2,) held over dt."""
+    def propagate(self, X: np.ndarray, u: np.ndarray, modes: np.ndarray | None = None) -> np.ndarray:
+        """Deterministic step of a cloud X (n, N) (or one state (n,)) with input u (2,) held over dt;
+        modes: the cloud's fault modes, which this model does not use."""
         one = X.ndim == 1
         if one:
             X = X[:, None]

@@ -287,7 +287,7 @@ def test_a_heavy_pitch_rate_tail_gives_a_share_of_the_particles_wider_pitch_rate
     from fdir_service.estimation.predict import DriftPredict
 
     class Still:
-        def propagate(self, X, u):
+        def propagate(self, X, u, modes=None):
             return X.copy()
 
     q_std = np.r_[np.zeros(4), 0.01, np.zeros(LAYOUT.nf)]

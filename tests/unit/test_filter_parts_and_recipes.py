@@ -41,7 +41,7 @@ class Still:
 
     B_actuator = np.zeros((5, 2))
 
-    def propagate(self, X, u):
+    def propagate(self, X, u, modes=None):
         return X.copy()
 
 

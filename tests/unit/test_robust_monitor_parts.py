@@ -97,7 +97,7 @@ def test_row_split_starts_on_the_trim_specific_force(robust):
 class Still:
     B_actuator = np.zeros((5, 1))
 
-    def propagate(self, X, u):
+    def propagate(self, X, u, modes=None):
         return X.copy()
 
 
