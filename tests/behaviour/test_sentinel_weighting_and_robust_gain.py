@@ -124,7 +124,7 @@ def test_prior_weighting_gives_a_glr_threshold():
     u = np.zeros(2)
     for offset, expect_high in ((0.5 * thr, False), (2.0 * thr, True)):
         f = build_particle_filter("JMRPF", sc.estimator, np.random.default_rng(1), particles=2000)
-        f.parts.predict.process.propagate = lambda X, u: X     # static cloud: isolate the jump
+        f.parts.predict.process.propagate = lambda X, u, modes=None: X    # static cloud: isolate the jump
         f.parts.predict.q_std[:] = 0.0
         y = f.meas.H @ f.x_mean
         y[0] += offset
