@@ -23,7 +23,12 @@ from pathlib import Path
 from typing import Any
 
 from fdir_service.errors import ConfigError
-from fdir_service.estimation.correction import ALTIMETER_GAINS, ALTITUDE_GAINS, GAIN_COVARIANCES
+from fdir_service.estimation.correction import (
+    ALTIMETER_GAINS,
+    ALTITUDE_GAINS,
+    FAULTY_ROW_GAINS,
+    GAIN_COVARIANCES,
+)
 from fdir_service.estimation.recipes import FILTER_NAMES
 from fdir_service.paths import airframe_path, estimator_path
 from fdir_service.tomltable import (
@@ -203,7 +208,8 @@ class FilterSettings:
     velocity_step: str = "euler"         # the kinematic model's body velocity: "euler" (u - q w dt) |
     #                                      "rotation" (turned by the frame's pitch angle exactly)
     frame_angle: str = "trapezoid"       # the kinematic model's pitch angle over a frame: "trapezoid"
-    #                                      of its pitch rates | "spread" (drawn between dt q and dt q+)
+    #                                      of its pitch rates | "spread" (drawn between dt q and dt q+) |
+    #                                      "snap" (drawn so only where a surface snaps)
     moment_alpha: str = "lift"           # the pitching moment's angle of attack: "lift" (read from a_z) |
     #                                      "stall_blend" (the velocity's past the airframe's stall angle)
     moment_wind: str = "entry"           # the moment's head wind under a biased pitot: "entry" (the pitot
@@ -224,6 +230,10 @@ class FilterSettings:
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
     #                                      innovations may move the altitude in the Kalman correction
     gain_covariance: str = "cloud"       # "cloud" | "within_mode": the Kalman gain's covariance
+    exclusive_items: tuple[str, ...] = ()  # groups of fault targets ("theta q": space-separated) whose
+    #                                      entries a particle may not hold in mode 1 together
+    faulty_row_gain: str = "all_states"  # "all_states" | "fault_entry": what a row moves in a particle
+    #                                      that holds one of its sensor faults in mode 1
     altimeter_gain: str = "all_states"   # "all_states" | "altitude": which states the altimeters'
     #                                      innovations may move in the Kalman correction
     imm: ImmSettings = field(default_factory=ImmSettings)
@@ -468,13 +478,14 @@ _CHOICES = {
     "actuator_sentinel": ("thesis", "consistent"), "rate_sentinel": ("row", "window"),
     "held_value": ("sentinel", "mean"), "q_noise": ("fixed", "learned"),
     "az_input": ("frame_end", "frame_mean"), "velocity_step": ("euler", "rotation"),
-    "frame_angle": ("trapezoid", "spread"),
+    "frame_angle": ("trapezoid", "spread", "snap"),
     "moment_alpha": ("lift", "stall_blend"),
     "moment_wind": ("entry", "fault_free"),
     "hold_resume": ("cloud", "held"),
     "fault_free_memory": ("entry", "item"),
     "drift_window": ("offset", "climb"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES, "altimeter_gain": ALTIMETER_GAINS,
+    "faulty_row_gain": FAULTY_ROW_GAINS,
 }
 """String settings of [parts] and their allowed values (the first field default applies)."""
 
@@ -506,9 +517,24 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         wind_hold=f.take("wind_hold", "number", d.wind_hold, check=UNIT_INTERVAL),
         held_airspeed_sigma=f.take("held_airspeed_sigma", "number", d.held_airspeed_sigma,
                                    check=NON_NEGATIVE),
+        exclusive_items=_exclusive_items(f, faults),
         imm=_imm(f, faults), gating=_gating(f), **words)
     f.finish()
     return s
+
+
+def _exclusive_items(f: TomlTable, faults: tuple[FaultSpec, ...]) -> tuple[str, ...]:
+    """parts.exclusive_items: groups of two or more fault targets, each a space-separated string."""
+    groups = f.take("exclusive_items", "strings", ())
+    targets = sorted({x.target for x in faults})
+    for i, group in enumerate(groups):
+        names = group.split()
+        unknown = [n for n in names if n not in targets]
+        if len(set(names)) < 2 or unknown:
+            raise ConfigError(f"{f.key('exclusive_items')}[{i}] = {group!r}: expected two or more "
+                              f"distinct fault targets separated by spaces, of {', '.join(targets)}"
+                              + (f"; {unknown} watched by no fault" if unknown else ""))
+    return tuple(groups)
 
 
 def _check_prior(settings: FilterSettings, faults: tuple[FaultSpec, ...]) -> None:

@@ -174,6 +174,48 @@ ALTIMETER_GAINS = ("all_states", "altitude")
 may move in the Kalman correction: every state; only the altitude (and the fault entries)."""
 
 
+FAULTY_ROW_GAINS = ("all_states", "fault_entry")
+"""parts.faulty_row_gain: what a row moves in a particle that holds one of its sensor faults in
+mode 1: every state (the cloud's gain), or only the fault entries (`FaultyRowCut`)."""
+
+
+class FaultyRowCut:
+    """A row a particle believes faulty tells that particle nothing of its airframe state
+    (parts.faulty_row_gain = "fault_entry"): for each particle, the airframe part of the Kalman move
+    loses the rows where it holds an additive sensor fault in mode 1; its fault entries keep it. The
+    gain is the cloud's, built from every row: a barometer ramp declared in mode 1 still pulled
+    each faulty particle's altitude along through it, and when the ramp ended that altitude was 2-3 m
+    off the true reading, which was then declared (docs/faults.md, "A faulty row moves its fault
+    only").
+
+    sensor_row (nf,): each fault's row in the full measurement model (-1: not an additive sensor
+    fault, `layout.FaultLayout.sensor_row`)."""
+
+    def __init__(self, sensor_row: np.ndarray) -> None:
+        self.sensor_row = np.asarray(sensor_row, dtype=int)
+        self._maps: dict[bytes, np.ndarray | None] = {}
+
+    def row_map(self, frame: Frame) -> np.ndarray | None:
+        """(m_rows, nf) 1 where fault j adds to the frame's row (cached per mask); None: none does."""
+        key = frame.mask.tobytes()
+        if key not in self._maps:
+            here = (self.sensor_row >= 0) & frame.mask[np.maximum(self.sensor_row, 0)]
+            E = np.zeros((frame.mm.m, self.sensor_row.size))
+            E[frame.row_of[self.sensor_row[here]], np.flatnonzero(here)] = 1.0
+            self._maps[key] = E if here.any() else None
+        return self._maps[key]
+
+    def apply(self, dX: np.ndarray, K: np.ndarray, innov: np.ndarray, modes: np.ndarray,
+              frame: Frame) -> None:
+        """dX (n, N) = K innov, in place: its airframe rows without each particle's faulty rows."""
+        E = self.row_map(frame)
+        if E is None:
+            return
+        faulty = (E @ modes) > 0.0                       # (m_rows, N): rows each particle holds faulty
+        if faulty.any():
+            dX[:AIRFRAME_STATES] -= K[:AIRFRAME_STATES] @ np.where(faulty, innov, 0.0)
+
+
 def altimeter_gain_cut(H: np.ndarray, altimeter_gain: str) -> np.ndarray | None:
     """(m,) bool: the rows of H (m, n) whose gain on u, w, theta and q is zeroed; None: none."""
     if altimeter_gain == "altitude":
@@ -208,7 +250,8 @@ class KalmanCorrection:
     the barometer (docs/robustness.md, "A gain from within each hypothesis")."""
 
     def __init__(self, pin, hold_mode0_faults: bool = False, altitude_gain: str = "all_rows",
-                 covariance: str = "cloud", altimeter_gain: str = "all_states") -> None:
+                 covariance: str = "cloud", altimeter_gain: str = "all_states",
+                 faulty_rows: FaultyRowCut | None = None) -> None:
         self.pin = pin
         self.hold_mode0_faults = bool(hold_mode0_faults)
         if altitude_gain not in ALTITUDE_GAINS:
@@ -220,6 +263,8 @@ class KalmanCorrection:
         self.altitude_gain = altitude_gain
         self.altimeter_gain = altimeter_gain
         self.within_mode = covariance == "within_mode"
+        self.faulty_rows = faulty_rows
+        """None, or the `FaultyRowCut` of parts.faulty_row_gain = "fault_entry"."""
 
     def update(self, X: np.ndarray, w: np.ndarray, modes: np.ndarray, frame: Frame) -> np.ndarray:
         mm = frame.mm
@@ -236,6 +281,8 @@ class KalmanCorrection:
         innov = frame.yv[:, None] - mm.H @ X
         ll = gaussian_loglik(innov, S_inv)
         dX = K @ innov
+        if self.faulty_rows is not None:
+            self.faulty_rows.apply(dX, K, innov, modes, frame)
         if self.hold_mode0_faults:
             dX[X.shape[0] - modes.shape[0]:] *= modes
         X += dX

@@ -19,7 +19,7 @@ from fdir_service.airframe.params import AirframeParams, load_airframe
 from fdir_service.errors import ConfigError
 from fdir_service.estimation.adaptive import AdaptiveTransition
 from fdir_service.estimation.amplitude import NO_ONSET_STEP, AmplitudePredictor
-from fdir_service.estimation.correction import KalmanCorrection, Likelihood
+from fdir_service.estimation.correction import FaultyRowCut, KalmanCorrection, Likelihood
 from fdir_service.estimation.drift_type import (
     ClimbOffsetSlope,
     DriftAnchor,
@@ -29,11 +29,13 @@ from fdir_service.estimation.drift_type import (
     drift_entries,
 )
 from fdir_service.estimation.fault_types import (
+    ItemExclusion,
     NoisySentinels,
     TypedCorrection,
     TypedEvolution,
     TypedPredict,
     TypeSwitch,
+    exclusion_matrix,
     same_item,
     sibling_pairs,
 )
@@ -54,7 +56,7 @@ from fdir_service.estimation.jump import (
     NoJump,
 )
 from fdir_service.estimation.kalman import KalmanFilter
-from fdir_service.estimation.kinematic import KinematicProcess, PitchMoment
+from fdir_service.estimation.kinematic import GyroSnap, KinematicProcess, PitchMoment
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.particle import ParticleFilter, Parts
@@ -171,13 +173,41 @@ def _process(estimator: EstimatorConfig, layout: FaultLayout):
                                 _input_positions(estimator, LATERAL_ROWS),
                                 _input_positions(estimator, BODY_RATE_ROWS),
                                 rotation=estimator.settings.velocity_step == "rotation",
-                                angle_spread=(float(estimator.state_process_std()[3])
-                                              if estimator.settings.frame_angle == "spread" else None))
+                                angle_spread=_angle_spread(estimator), snap=_gyro_snap(estimator))
     lm = estimator_linear_model(estimator)
     if estimator.settings.process_model == "linear":
         return LinearProcess(lm, layout)
     return NonlinearProcess(_airframe(estimator.airframe), lm.trim.z, lm.trim.u, estimator.dt_s, layout,
                             INTEGRATOR)
+
+
+SNAP_SHARE = 0.5
+"""parts.frame_angle = "snap": the frame's angle is spread once the trapezoid could be off by more
+than this share of the attitude reading's sigma in one frame, dt |dq| / 2 for the gyro reading's
+change dq (at 20 Hz and 0.015 rad: 17 deg/s within a frame). Turbulence moves the gyro by at
+most ~10 deg/s a frame in the real worlds (p99.9 ~4); a surface that snaps, by 30-75."""
+
+
+def _angle_spread(estimator: EstimatorConfig) -> float | None:
+    """The trapezoid's error bound (rad) above which some particle's angle makes the kinematic
+    model spread a frame's angle (parts.frame_angle = "spread": theta's process noise over a frame;
+    `KinematicProcess.angle_spread`); 0 for "snap", where the gyro decides (`_gyro_snap`); None for
+    "trapezoid"."""
+    kind = estimator.settings.frame_angle
+    return float(estimator.state_process_std()[3]) if kind == "spread" else 0.0 if kind == "snap" else None
+
+
+def _gyro_snap(estimator: EstimatorConfig) -> GyroSnap | None:
+    """parts.frame_angle = "snap": the `GyroSnap` on the q row, its limit 2 `SNAP_SHARE` sigma_theta
+    / dt (rad/s); else None."""
+    if estimator.settings.frame_angle != "snap":
+        return None
+    missing = [r for r in ("theta", "q") if r not in estimator.measurements]
+    if missing:
+        raise ConfigError(f"parts.frame_angle = \"snap\" reads the gyro against the attitude reading's "
+                          f"sigma: expected measurements.rows listing theta and q, missing {missing}")
+    sigma = float(estimator.sigma[estimator.measurements.index("theta")])
+    return GyroSnap(estimator.observed.index("q"), 2.0 * SNAP_SHARE * sigma / estimator.dt_s)
 
 
 def _bandwidth(estimator: EstimatorConfig, n: int, N: int) -> float:
@@ -400,12 +430,16 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
         predict=_predictor(rec, estimator, process, q_std),
         jump=jump, sentinel_weighting=sentinels,
         correction=(KalmanCorrection(jump.pin, rec.has_modes and est.mode0 == "drift",
-                                     est.altitude_gain, est.gain_covariance, est.altimeter_gain)
+                                     est.altitude_gain, est.gain_covariance, est.altimeter_gain,
+                                     FaultyRowCut(layout.sensor_row)
+                                     if rec.has_modes and est.faulty_row_gain == "fault_entry" else None)
                     if rec.correction == "kalman" else Likelihood()),
         resample_due=EveryStep() if every else BelowEffectiveSize(est.resample_threshold),
         resampler=resampler("systematic" if every else est.resampler),
         regulariser=_regulariser(rec, estimator, amp, _bandwidth(estimator, layout.n, N)),
     )
+    if rec.has_modes and est.exclusive_items:
+        jump.exclusion = ItemExclusion(exclusion_matrix(layout, est.exclusive_items))
     if est.q_noise == "learned":
         parts.correction = _learned_noise(parts.correction, parts.predict, estimator, layout, meas, process)
     return (_typed(parts, estimator, layout, meas, N) if rec.has_modes else parts), amp

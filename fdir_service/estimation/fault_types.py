@@ -251,6 +251,40 @@ def same_item(layout: FaultLayout) -> np.ndarray:
     return np.array([[a == b for b in items] for a in items], dtype=bool)
 
 
+def exclusion_matrix(layout: FaultLayout, groups: tuple[str, ...]) -> np.ndarray:
+    """(nf, nf) float: 1 at [b, a] where entry a in mode 1 keeps entry b out of it: additive
+    entries on different targets of one group (parts.exclusive_items, each a space-separated
+    string of fault targets)."""
+    E = np.zeros((layout.nf, layout.nf))
+    additive = np.array([layout.type_of(j) != "noisy" for j in range(layout.nf)])
+    targets = np.array(layout.targets)
+    for group in groups:
+        member = np.isin(targets, group.split()) & additive
+        E += np.outer(member, member) * (targets[:, None] != targets[None, :])
+    return np.minimum(E, 1.0)
+
+
+class ItemExclusion:
+    """Items that do not fail together (parts.exclusive_items): a particle that holds a fault of one
+    item of a group in mode 1 cannot enter a fault of another. The attitude reading and the gyro
+    are the two observers of the pitch chain (theta' = q): with both in mode 1 nothing pins theta,
+    and a jammed elevator's pitch that the moment model misses was taken for a gyro fault that an
+    attitude drift then followed, the attitude 5-8 deg off and the altitude 14 m (real-actuators run
+    24); an attitude ramp likewise for a gyro bias (real-drift run 2). As `TypeSwitch.open` keeps one
+    type per item (docs/faults.md, "The pitch chain fails in one place").
+
+    excludes (nf, nf): `exclusion_matrix`."""
+
+    def __init__(self, excludes: np.ndarray) -> None:
+        self.excludes = np.asarray(excludes, dtype=float)
+
+    def open(self, may: np.ndarray, modes: np.ndarray) -> np.ndarray:
+        """(nf, N) bool: may ((nf,) or (nf, N)) less the entries whose group holds another item in
+        mode 1 (modes (nf, N))."""
+        blocked = (self.excludes @ modes) > 0.0
+        return (may[:, None] if may.ndim == 1 else may) & ~blocked
+
+
 def sibling_pairs(layout: FaultLayout) -> np.ndarray:
     """(p, 2) ordered pairs (a, b) of additive fault entries of different types on the same item
     (a measurement row, or an input): the hand-overs `TypeSwitch` may make."""

@@ -391,6 +391,8 @@ class MarkovJump:
         self.exit = exit or ModelExit()
         self.switch = None
         """None, or a `fault_types.TypeSwitch`: a fault handed to another type of its item."""
+        self.exclusion = None
+        """None, or the `fault_types.ItemExclusion` of parts.exclusive_items."""
         self.given_fault = False
         """True (typed estimators): `annotate` sets out.fault_value to each entry's mean over its
         mode-1 particles (what the fault is, if it is one), before `TypedPredict` words it per type."""
@@ -420,6 +422,8 @@ class MarkovJump:
         folded = self.fold.capture(F, modes, v, pi10, reset_to)
         anchored = None if self.switch is None else self.switch.anchor(F, modes, v, pi10, innov, frame)
         may = avail if self.switch is None else self.switch.open(avail, modes)
+        if self.exclusion is not None:
+            may = self.exclusion.open(may, modes)
         self.sentinels = jump(F, modes, A, may, self.transition.pi01, pi10, v, self.forced_zero,
                               reset_to)
         self.carry.apply(X, F, carried)

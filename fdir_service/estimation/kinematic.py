@@ -54,11 +54,16 @@ is slow and acts like an elevator offset: the elevator fault's mode-0 drift carr
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from fdir_service.airframe.params import AirframeParams
 from fdir_service.estimation.inputs import G
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
+
+if TYPE_CHECKING:
+    from fdir_service.estimation.frame import Frame
 
 
 class PitchMoment:
@@ -123,14 +128,18 @@ class KinematicProcess:
     def __init__(self, dt: float, layout: FaultLayout, moment: PitchMoment | None = None,
                  v_ref: float = 40.0, lateral: tuple[int, int] | None = None,
                  rates: tuple[int, int] | None = None, rotation: bool = False,
-                 angle_spread: float | None = None) -> None:
+                 angle_spread: float | None = None, snap: GyroSnap | None = None) -> None:
         self.dt = float(dt)
         self.rotation = rotation
         """parts.velocity_step = "rotation": (u, w) turn by the frame's pitch angle exactly
         (`_velocity_step`); False: the Euler step (u - q w dt, w + q u dt)."""
         self.angle_spread = angle_spread
         """parts.frame_angle = "spread": theta's process noise over a frame (rad), above which the
-        frame's angle is drawn between its two rectangle rules (`close_frame`); None: the trapezoid."""
+        frame's angle is drawn between its two rectangle rules (`close_frame`); None: the trapezoid;
+        0 with `snap`."""
+        self.snap = snap
+        """parts.frame_angle = "snap": the `GyroSnap` that says when to draw, in place of any
+        particle's bound exceeding `angle_spread`."""
         self.layout = layout
         self.moment = moment
         self.lateral = lateral
@@ -256,23 +265,26 @@ class KinematicProcess:
         return (vu * cf - vw * sf + h * (fu * ch - fw * sh),
                 vu * sf + vw * cf + h * (fu * sh + fw * ch))
 
-    def close_frame(self, prior: np.ndarray, X: np.ndarray, rng: np.random.Generator | None = None) -> None:
+    def close_frame(self, prior: np.ndarray, X: np.ndarray, rng: np.random.Generator | None = None,
+                    frame: Frame | None = None) -> None:
         """In place, once the frame's correction has moved X (n, N): theta += dt (q+ - q) / 2, so
         that theta over the frame is the trapezoid of its pitch rates, q of the prior (n, N) (the same
         particles before the step) and q+ as the gyro corrected it, not as the moment predicted it.
         A surface that snaps pitches the aircraft at ~100 deg/s within a frame; theta + q dt alone
         then lags by dt (q+ - q) / 2 per frame. With `rotation` the body velocity (u, w) turns by
         that angle too. With `angle_spread` (parts.frame_angle = "spread") the angle is drawn
-        between the rectangle rules (`_spread_angle`)."""
+        between the rectangle rules (`_spread_angle`); with `snap`, only in a frame whose gyro reading
+        (frame: this step's) snapped."""
         turn = (0.5 * self.dt) * (X[4] - prior[4])
         if self.angle_spread is not None and rng is not None:
-            turn = self._spread_angle(turn, rng)
+            turn = self._spread_angle(turn, rng, frame)
         X[3] += turn
         if self.rotation:
             c, s = np.cos(turn), np.sin(turn)
             X[1], X[2] = X[1] * c - X[2] * s, X[1] * s + X[2] * c
 
-    def _spread_angle(self, turn: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    def _spread_angle(self, turn: np.ndarray, rng: np.random.Generator, frame: Frame | None = None
+                      ) -> np.ndarray:
         """The frame's extra angle (N,) rad, drawn per particle between the rectangle rules.
 
         The pitch angle over a frame, the integral of q, lies between dt q and dt q+ when q moves
@@ -281,8 +293,38 @@ class KinematicProcess:
         (docs/faults.md, "The frame's angle spread"). Where that bound exceeds theta's process
         noise over a frame (`angle_spread`) on some particle, each particle's angle is drawn
         uniform on it, so the cloud spans the attitude the aircraft may have and the attitude
-        sensor picks it; elsewhere the trapezoid stands and no draw is made."""
+        sensor picks it; elsewhere the trapezoid stands and no draw is made. With `snap`
+        (parts.frame_angle = "snap") the test is the gyro's reading: in turbulence, where it moves
+        by at most ~10 deg/s a frame, no draw is ever made, nor where the cloud's own q swings
+        while the gyro is held faulty."""
         half = np.abs(turn)
-        if not half.max() > self.angle_spread:
+        fire = self.snap.snapped(frame) if self.snap is not None else half.max() > self.angle_spread
+        if not fire:
             return turn
         return turn + half * rng.uniform(-1.0, 1.0, turn.shape)
+
+
+class GyroSnap:
+    """Whether the aircraft's pitch rate snapped within a frame, read from the gyro (parts.frame_angle
+    = "snap"): its reading moved by more than `limit` (rad/s) since its last frame. A surface that
+    frees moves it by 30-75 deg/s a frame; moderate turbulence by at most ~10 (p99.9 ~4) in the
+    real worlds. The cloud's own pitch rates are no test: while most of the cloud holds the gyro
+    faulty, its q follows the moment model and swings by tens of deg/s a frame with no snap
+    (real-actuators run 15 during a jam).
+
+    row: the gyro's row among the estimator's observed rows; limit: rad/s."""
+
+    def __init__(self, row: int, limit: float) -> None:
+        self.row = int(row)
+        self.limit = float(limit)
+        self.last: float | None = None
+        """The gyro's last reading (rad/s); None before the first."""
+
+    def snapped(self, frame: Frame | None) -> bool:
+        """True when this frame's gyro reading is more than `limit` from the last one (and keep it)."""
+        if frame is None or not frame.mask[self.row]:
+            return False
+        q = float(frame.yv[frame.row_of[self.row]])
+        moved = self.last is not None and abs(q - self.last) > self.limit
+        self.last = q
+        return moved

@@ -112,7 +112,7 @@ class ParticleFilter:
         move_lw = p.jump.jump(X, self.modes, self.w, frame, rng)
         bonus = p.sentinel_weighting.weigh(X, frame, p.jump.sentinels, rng)
         ll = p.correction.update(X, self.w, self.modes, frame)
-        p.predict.process.close_frame(self.X, X, rng)
+        p.predict.process.close_frame(self.X, X, rng, frame)
         if bonus is not None:
             ll += bonus
         if move_lw is not None:

@@ -34,7 +34,8 @@ class WholeFrameStep:
     """A process model whose propagate is the whole frame: nothing to close after the correction
     (`KinematicProcess.close_frame` is the one that has something)."""
 
-    def close_frame(self, prior: np.ndarray, X: np.ndarray, rng: np.random.Generator | None = None) -> None:
+    def close_frame(self, prior: np.ndarray, X: np.ndarray, rng: np.random.Generator | None = None,
+                    frame=None) -> None:
         """Nothing: X (n, N) after the frame's correction stays as it is."""
 
 

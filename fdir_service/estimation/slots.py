@@ -20,7 +20,7 @@ class Predictor(Protocol):
     """predict: the process model plus its noise (`predict.GaussianPredict`, `ModeGatedPredict`)."""
 
     process: object
-    """propagate(X, u): the frame's step; close_frame(prior, X, rng): in place once the correction
+    """propagate(X, u): the frame's step; close_frame(prior, X, rng, frame): in place once the correction
     has moved X (`process.WholeFrameStep`: nothing; `kinematic.KinematicProcess`: theta's trapezoid,
     or its spread)."""
 
