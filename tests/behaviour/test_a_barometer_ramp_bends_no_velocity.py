@@ -11,8 +11,7 @@ an attitude drift then bending the altitude with no altimeter to straighten the 
 real-drift run 18 (campaign seed 0), the autopilot on the monitor's estimate, to 90 s: the ramp
 runs 51.6-65.2 s. Both flights keep parts.moment_wind = "entry", the catalogue's when the failure
 was traced: with "fault_free" every pitot-bias sentinel's moment differs, the flight is another
-one, and in it this ramp is declared under either gain (a near thing, as a missed ramp is); and
-no exclusive items (stop 49's pitch chain, which flies another flight from the first attitude ramp)."""
+one, and in it this ramp is declared under either gain (a near thing, as a missed ramp is)."""
 
 from __future__ import annotations
 
@@ -31,8 +30,7 @@ RAMP_S, AFTER_S = (51.6, 65.2), (68.2, 90.0)
 def barometer(altimeter_gain: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(baro declared during the ramp, its drift entry's P then, baro declared after it) per frame."""
     sc = load_scenario("real-drift")
-    parts = dataclasses.replace(sc.estimator.settings, altimeter_gain=altimeter_gain, moment_wind="entry",
-                                exclusive_items=())
+    parts = dataclasses.replace(sc.estimator.settings, altimeter_gain=altimeter_gain, moment_wind="entry")
     est = dataclasses.replace(sc.estimator, settings=parts)
     tr = fly(dataclasses.replace(sc, estimator=est, duration_s=AFTER_S[1]), "RJMRPF", 18, 0)
     P = np.array([o.fault_probability for o in tr.outputs])

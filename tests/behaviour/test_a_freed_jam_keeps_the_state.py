@@ -33,8 +33,7 @@ def worst_errors(velocity_step: str) -> tuple[np.ndarray, float]:
     # resumed hold of stop 48 make it another flight
     est = dataclasses.replace(est, settings=dataclasses.replace(est.settings, velocity_step=velocity_step,
                                                                 frame_angle="trapezoid", moment_alpha="lift",
-                                                                moment_wind="entry", hold_resume="cloud",
-                                                                exclusive_items=()))
+                                                                moment_wind="entry", hold_resume="cloud"))
     sc = dataclasses.replace(sc, estimator=est, navigation="truth", duration_s=112.0)
     tr = fly(sc, "RJMRPF", 25, 0)
     late = tr.t > 95.0

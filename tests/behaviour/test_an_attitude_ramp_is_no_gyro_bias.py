@@ -2,9 +2,9 @@
 bias would, and the rate window proposes gyro sentinels with that bias. With both the gyro and
 the attitude free to be faulty at once, the cloud followed the ramping reading through gyro-faulty
 particles, theta went 3-4 deg off, the altitude 9 m, and the barometer was declared before the
-attitude. With the catalogue's parts.exclusive_items = ["theta q"] (`fault_types.ItemExclusion`)
+attitude. With parts.exclusive_items = ["theta q"] (`fault_types.ItemExclusion`; not the default)
 a particle that holds the gyro faulty cannot also hold the attitude faulty: the ramp is declared on
-the attitude first, and the altitude holds (docs/faults.md, "The pitch chain fails in one place").
+the attitude first, and the altitude holds (docs/faults.md, "The pitch chain in one place, measured").
 
 real-drift run 2 (campaign seed 0), monitor loop, to 42 s: the attitude reading ramps 21.6-35.6 s
 (to 8.2 deg). In the campaign without the exclusion the barometer stood at 38.7 s: a false alarm."""

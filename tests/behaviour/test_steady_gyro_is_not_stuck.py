@@ -41,5 +41,5 @@ def test_a_steady_pitch_raises_nothing_once_the_pitch_noise_is_learnt(build):
     else:                              # the contrast: the same flight on the build before
         found = declared_items(q_noise="fixed", az_input="frame_end", velocity_step="euler",
                                frame_angle="trapezoid", moment_alpha="lift", moment_wind="entry",
-                               hold_resume="cloud", exclusive_items=())
+                               hold_resume="cloud")
         assert set(found) == {"q"} and 191.5 < found["q"] < 192.5

@@ -26,9 +26,7 @@ AFTER_S = (48.0, 72.0)
 def pitot_declared_after(hold_resume: str) -> np.ndarray:
     """The pitot declared, per frame of AFTER_S (bool)."""
     sc = load_scenario("real-engine")
-    # pinned to the parts it measured (stop 48): stop 49's pitch chain flies another flight after
-    # the engine's first loss, in which the cloud's airspeed leaves the pitot declared less of the time
-    parts = dataclasses.replace(sc.estimator.settings, hold_resume=hold_resume, exclusive_items=())
+    parts = dataclasses.replace(sc.estimator.settings, hold_resume=hold_resume)
     est = dataclasses.replace(sc.estimator, settings=parts)
     tr = fly(dataclasses.replace(sc, estimator=est, duration_s=AFTER_S[1]), "RJMRPF", 96, 0)
     P = np.array([o.fault_probability for o in tr.outputs])

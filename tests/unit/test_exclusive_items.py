@@ -38,9 +38,11 @@ def test_the_additive_entries_of_one_item_keep_the_other_item_out():
     assert may[:, 2].all()                                             # particle 2: nothing held
 
 
-def test_the_catalogue_excludes_the_pitch_chain_and_a_bad_group_names_the_key():
-    est = load_estimator("aerosonde-catalogue")
-    assert est.settings.exclusive_items == ("theta q",)
+def test_the_pitch_chain_excluded_on_the_catalogue_and_a_bad_group_names_the_key():
+    assert load_estimator("aerosonde-catalogue").settings.exclusive_items == ()
+    doc, _ = estimator_document("aerosonde-catalogue")
+    doc["parts"]["exclusive_items"] = ["theta q"]
+    est = parse_estimator(doc, "test.toml")
     f = build_filter("RJMRPF", est, np.random.default_rng(0), particles=20)
     jump = getattr(f.parts.jump, "inner", f.parts.jump)
     while not hasattr(jump, "exclusion"):
