@@ -12,23 +12,12 @@ barometer stood at 27 s, 3 s after the jam's end: a false alarm."""
 
 from __future__ import annotations
 
-import dataclasses
-
-import numpy as np
-
-from sim_bridge.campaign import fly
-from sim_bridge.scenario import load_scenario
-from tests.helpers.declarations import first_declarations
+from tests.helpers.declarations import fly_with_parts
 
 
 def flight(exclusive: tuple[str, ...]) -> tuple[dict[str, float], float]:
     """({item: first declared (s)}, the largest altitude error (m)) with those exclusive items."""
-    sc = load_scenario("real-actuators")
-    est = dataclasses.replace(sc.estimator,
-                              settings=dataclasses.replace(sc.estimator.settings, exclusive_items=exclusive))
-    tr = fly(dataclasses.replace(sc, estimator=est, duration_s=32.0), "RJMRPF", 24, 0)
-    altitude = np.array([o.x_mean[0] for o in tr.outputs])
-    return first_declarations(sc.estimator.faults, tr), float(np.abs(altitude - tr.z[:, 0]).max())
+    return fly_with_parts("real-actuators", 24, 32.0, exclusive_items=exclusive)
 
 
 def test_with_the_pitch_chain_exclusive_only_the_elevator_is_declared():

@@ -11,23 +11,12 @@ real-drift run 2 (campaign seed 0), monitor loop, to 42 s: the attitude reading 
 
 from __future__ import annotations
 
-import dataclasses
-
-import numpy as np
-
-from sim_bridge.campaign import fly
-from sim_bridge.scenario import load_scenario
-from tests.helpers.declarations import first_declarations
+from tests.helpers.declarations import fly_with_parts
 
 
 def flight(exclusive: tuple[str, ...]) -> tuple[dict[str, float], float]:
     """({item: first declared (s)}, the largest altitude error (m)) with those exclusive items."""
-    sc = load_scenario("real-drift")
-    est = dataclasses.replace(sc.estimator,
-                              settings=dataclasses.replace(sc.estimator.settings, exclusive_items=exclusive))
-    tr = fly(dataclasses.replace(sc, estimator=est, duration_s=42.0), "RJMRPF", 2, 0)
-    altitude = np.array([o.x_mean[0] for o in tr.outputs])
-    return first_declarations(sc.estimator.faults, tr), float(np.abs(altitude - tr.z[:, 0]).max())
+    return fly_with_parts("real-drift", 2, 42.0, exclusive_items=exclusive)
 
 
 def test_the_attitude_is_declared_and_the_altitude_holds():

@@ -19,3 +19,18 @@ def first_declarations(faults, tr) -> dict[str, float]:
         if k.size:
             found[item] = float(tr.t[k[0]])
     return found
+
+
+def fly_with_parts(world: str, run: int, seconds: float, **parts) -> tuple[dict[str, float], float]:
+    """({item: first declared (s)}, the largest altitude error (m)) of `world`'s run `run` (campaign
+    seed 0, the monitor loop) flown to `seconds` with the estimator's [parts] settings `parts`."""
+    import dataclasses
+
+    from sim_bridge.campaign import fly
+    from sim_bridge.scenario import load_scenario
+
+    sc = load_scenario(world)
+    est = dataclasses.replace(sc.estimator, settings=dataclasses.replace(sc.estimator.settings, **parts))
+    tr = fly(dataclasses.replace(sc, estimator=est, duration_s=seconds), "RJMRPF", run, 0)
+    altitude = np.array([o.x_mean[0] for o in tr.outputs])
+    return first_declarations(sc.estimator.faults, tr), float(np.abs(altitude - tr.z[:, 0]).max())
