@@ -186,7 +186,8 @@ class FaultyRowCut:
     gain is the cloud's, built from every row: a barometer ramp declared in mode 1 still pulled
     each faulty particle's altitude along through it, and when the ramp ended that altitude was 2-3 m
     off the true reading, which was then declared. Measured, not a default: over real-drift 21 ->
-    21 false alarms, real-stuck 4 -> 7 (docs/faults.md, "A faulty row moves its fault only").
+    21 false alarms, real-stuck 4 -> 7, real-pitot 3 -> 6 (docs/faults.md, "A faulty row moves its
+    fault only").
 
     sensor_row (nf,): each fault's row in the full measurement model (-1: not an additive sensor
     fault, `layout.FaultLayout.sensor_row`)."""
