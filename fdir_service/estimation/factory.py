@@ -36,6 +36,7 @@ from fdir_service.estimation.fault_types import (
     TypedPredict,
     TypeSwitch,
     exclusion_matrix,
+    pair_exclusion,
     same_item,
     sibling_pairs,
 )
@@ -359,6 +360,11 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     switch = TypeSwitch(pairs, estimator.switch_rates(), evolution, layout.sensor_row) \
         if pairs.size or evolution.stuck.size else None
     parts.jump.use_types(switch)
+    if pairs.size:                              # one additive type per item, beside exclusive_items
+        one_type = pair_exclusion(pairs, layout.nf)
+        held = parts.jump.exclusion
+        parts.jump.exclusion = ItemExclusion(one_type if held is None
+                                             else np.maximum(one_type, held.excludes))
     if estimator.settings.fault_free_memory == "item" and parts.jump.drift is not None:
         parts.jump.drift = ItemDriftMemory(same_item(layout))
     parts.predict = TypedPredict(parts.predict, evolution, layout)

@@ -264,14 +264,24 @@ def exclusion_matrix(layout: FaultLayout, groups: tuple[str, ...]) -> np.ndarray
     return np.minimum(E, 1.0)
 
 
+def pair_exclusion(pairs: np.ndarray, nf: int) -> np.ndarray:
+    """(nf, nf) float: 1 at [b, a] for each pair (a, b) of `pairs` (p, 2) (`sibling_pairs`: one
+    additive type per item at a time)."""
+    E = np.zeros((nf, nf))
+    E[pairs[:, 1], pairs[:, 0]] = 1.0
+    return E
+
+
 class ItemExclusion:
-    """Items that do not fail together (parts.exclusive_items): a particle that holds a fault of one
-    item of a group in mode 1 cannot enter a fault of another. The attitude reading and the gyro
+    """Fault entries a particle may not hold in mode 1 together: while entry a is in mode 1, entry
+    b cannot enter it. Two sources, joined in one matrix: the additive types of one item
+    (`pair_exclusion`: one type per item, `TypeSwitch`), and items that do not fail together
+    (parts.exclusive_items, `exclusion_matrix`). The attitude reading and the gyro
     are the two observers of the pitch chain (theta' = q): with both in mode 1 nothing pins theta,
     and a jammed elevator's pitch that the moment model misses was taken for a gyro fault that an
     attitude drift then followed, the attitude 5-8 deg off and the altitude 14 m (real-actuators run
-    24); an attitude ramp likewise for a gyro bias (real-drift run 2). As `TypeSwitch.open` keeps one
-    type per item. Measured, not a default: over the catalogue's worlds a reshuffle (seed 0: 43 ->
+    24); an attitude ramp likewise for a gyro bias (real-drift run 2). That group is measured, not a
+    default: over the catalogue's worlds a reshuffle (seed 0: 43 ->
     41 false alarms; real-actuators seed 1: 18 -> 31; docs/faults.md, "The pitch chain in one
     place, measured").
 
@@ -281,8 +291,8 @@ class ItemExclusion:
         self.excludes = np.asarray(excludes, dtype=float)
 
     def open(self, may: np.ndarray, modes: np.ndarray) -> np.ndarray:
-        """(nf, N) bool: may ((nf,) or (nf, N)) less the entries whose group holds another item in
-        mode 1 (modes (nf, N))."""
+        """(nf, N) bool: may ((nf,) or (nf, N)) less the entries that an entry in mode 1 (modes
+        (nf, N)) keeps out."""
         blocked = (self.excludes @ modes) > 0.0
         return (may[:, None] if may.ndim == 1 else may) & ~blocked
 
@@ -305,8 +315,9 @@ class TypeSwitch:
     stuck sensor from a biased one. Without it, the type that took the fault first keeps it until
     sentinels of the other happen to win.
 
-    One type per item at a time (`open`): the additive types of an item add the same offset, so a
-    particle with two of them in mode 1 could split one fault between them in any proportion.
+    One type per item at a time (an `ItemExclusion` of these pairs, `pair_exclusion`): the
+    additive types of an item add the same offset, so a particle with two of them in mode 1 could
+    split one fault between them in any proportion.
 
     A stuck sensor that comes back re-anchors the state (`anchor`, `apply_anchor`): half the
     particles leaving a stuck mode (v < pi10 / 2) move their airframe state so that the row predicts
@@ -357,14 +368,6 @@ class TypeSwitch:
         """After the jump: X[:5] += g values, in place."""
         if values is not None:
             X[:N_AIRFRAME] += self.stuck_g @ values
-
-    def open(self, available: np.ndarray, modes: np.ndarray) -> np.ndarray:
-        """(nf, N) where each fault may enter mode 1 this step: available (nf,) and no other type of
-        its item in mode 1 (modes (nf, N))."""
-        may = np.broadcast_to(available[:, None], modes.shape).copy()
-        for a, b in self.pairs.tolist():
-            may[b] &= ~modes[a]
-        return may
 
     def apply(self, F: np.ndarray, modes: np.ndarray, reset_to: np.ndarray | None,
               rng: np.random.Generator) -> None:

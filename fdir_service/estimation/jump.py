@@ -76,7 +76,7 @@ def jump(F: np.ndarray, modes: np.ndarray, amplitude: np.ndarray, available: np.
     amplitude (nf, N): predicted fault amplitude per particle (A_f, eq. 4.14/4.16); available (nf,)
     bool: False where no amplitude could be predicted this frame (its measurement rows did not
     arrive), then no particle enters mode 1 for that fault (or (nf, N) per particle: a particle
-    whose item has another type in mode 1 cannot enter, `fault_types.TypeSwitch.open`); pi01 (nf,),
+    whose item has another type in mode 1 cannot enter, `fault_types.ItemExclusion`); pi01 (nf,),
     pi10 (nf,) or per particle (nf, N) (`FaintExit`); v (nf, N) ~ U(0, 1); reset_to (nf,): what an
     exit's fault entry becomes when not forced_zero (None: 0).
     Returns the sentinels (nf, N) bool: the particles that jumped 0 -> 1 this step.
@@ -392,7 +392,7 @@ class MarkovJump:
         self.switch = None
         """None, or a `fault_types.TypeSwitch`: a fault handed to another type of its item."""
         self.exclusion = None
-        """None, or the `fault_types.ItemExclusion` of parts.exclusive_items."""
+        """None, or the `fault_types.ItemExclusion`: one type per item, parts.exclusive_items."""
         self.given_fault = False
         """True (typed estimators): `annotate` sets out.fault_value to each entry's mean over its
         mode-1 particles (what the fault is, if it is one), before `TypedPredict` words it per type."""
@@ -421,9 +421,7 @@ class MarkovJump:
         self.fold.observe(modes, w)
         folded = self.fold.capture(F, modes, v, pi10, reset_to)
         anchored = None if self.switch is None else self.switch.anchor(F, modes, v, pi10, innov, frame)
-        may = avail if self.switch is None else self.switch.open(avail, modes)
-        if self.exclusion is not None:
-            may = self.exclusion.open(may, modes)
+        may = avail if self.exclusion is None else self.exclusion.open(avail, modes)
         self.sentinels = jump(F, modes, A, may, self.transition.pi01, pi10, v, self.forced_zero,
                               reset_to)
         self.carry.apply(X, F, carried)

@@ -112,7 +112,7 @@ def combine_probability(p: np.ndarray, noisy: np.ndarray | None = None) -> np.nd
     (k,) bool marks noisy entries (None: none).
 
     The additive types of an item (bias, stuck, jammed, effectiveness) are exclusive in every
-    particle (one of them in mode 1 at a time, `fault_types.TypeSwitch.open`), so P(one of them) is
+    particle (one of them in mode 1 at a time, `fault_types.ItemExclusion`), so P(one of them) is
     their sum, exactly; a noisy entry may stand beside one of them and is combined as an independent
     event, 1 - (1 - P(additive)) prod(1 - p_noisy). When a fault's type is ambiguous the types share
     the evidence (stuck 0.6, bias 0.3) and the item still has the whole of it (0.9). A single

@@ -43,13 +43,19 @@ def test_the_pitch_chain_excluded_on_the_catalogue_and_a_bad_group_names_the_key
     doc, _ = estimator_document("aerosonde-catalogue")
     doc["parts"]["exclusive_items"] = ["theta q"]
     est = parse_estimator(doc, "test.toml")
-    f = build_filter("RJMRPF", est, np.random.default_rng(0), particles=20)
-    jump = getattr(f.parts.jump, "inner", f.parts.jump)
-    while not hasattr(jump, "exclusion"):
-        jump = jump.inner
     targets = [x.target for x in est.faults]
-    E = jump.exclusion.excludes
-    assert {targets[b] for b, a in zip(*np.nonzero(E), strict=True)} == {"theta", "q"}
+
+    def excluded_targets(estimator) -> set[tuple[str, str]]:
+        """{(target kept out, target in mode 1)} of the filter's one exclusion matrix."""
+        jump = build_filter("RJMRPF", estimator, np.random.default_rng(0), particles=20).parts.jump
+        while not hasattr(jump, "exclusion"):
+            jump = jump.inner
+        E = jump.exclusion.excludes
+        return {(targets[b], targets[a]) for b, a in zip(*np.nonzero(E), strict=True)}
+
+    one_type = excluded_targets(load_estimator("aerosonde-catalogue"))   # the types of one item
+    assert all(b == a for b, a in one_type) and ("theta", "theta") in one_type
+    assert excluded_targets(est) - one_type == {("theta", "q"), ("q", "theta")}
     assert load_estimator("aerosonde-robust").settings.exclusive_items == ()
     for bad in (["theta"], ["theta theta"], ["theta airspeed_x"]):
         doc, _ = estimator_document("aerosonde-catalogue")
