@@ -110,32 +110,71 @@ class ClimbOffsetSlope(OffsetSlope):
     towards it, and its slope against that altitude is only what the bending left. Fault-free this
     offset's change over 3-10 s spreads 1.4-1.6 m (the barometer's own noise) and the readings'
     climb is 0.016 m/s off on average (real-drift, docs/faults.md, "Stays ambiguous"). Other rows
-    are as `OffsetSlope`'s. Measured, not a default: real-drift 21 -> 31 false alarms, the attitude
-    reading's own ramps entering the climb, and the window spanning a ramp's step back at its end.
+    are as `OffsetSlope`'s.
 
-    velocity (3,): the rows of u, w and theta among the measurement rows."""
+    Two guards (stop 50): the attitude in the climb is the reading less the cloud's mean additive
+    offset of its item (`attitude_entries`: bias, stuck, drift; a stuck reading's entry is the
+    offset that holds it, so the cloud's attitude is used then), so an attitude ramp the cloud has
+    taken does not climb; and an altimeter offset that steps by more than `STEP_SIGMAS` of its
+    row's noise from the mean of its last `STEP_FRAMES` offsets restarts that row's window, so a
+    ramp's step back at its end is not read as a slope. Without them (stop 48) real-drift raised
+    31 false alarms against the offset window's 21.
+
+    velocity (3,): the rows of u, w and theta among the measurement rows; attitude_entries: the
+    fault entries (indices into the faults) whose offset adds to the theta row; row_sigma (k,):
+    the drift rows' noise (SI)."""
+
+    STEP_SIGMAS = 5.0
+    STEP_FRAMES = 5
 
     def __init__(self, rows: np.ndarray, H: np.ndarray, frames: int, velocity: tuple[int, int, int],
-                 dt: float) -> None:
+                 dt: float, attitude_entries: np.ndarray | None = None,
+                 row_sigma: np.ndarray | None = None) -> None:
         super().__init__(rows, H, frames)
         self.altimeter = self.h[:, 0] != 0.0
         self.velocity = tuple(int(r) for r in velocity)
         self.dt = float(dt)
+        entries = [] if attitude_entries is None else attitude_entries
+        self.attitude = N_AIRFRAME + np.asarray(entries, dtype=int)
+        self.step = (None if row_sigma is None
+                     else self.STEP_SIGMAS * np.where(self.altimeter, np.asarray(row_sigma, float), np.inf))
+        """(k,) the offset step (SI) that restarts a row's window; None: never (inf: not an altimeter)."""
         self.climb = 0.0
         """m: the integral of the readings' climb rate since the first frame."""
         self.last_rate = 0.0
 
-    def _climb_rate(self, frame: Frame) -> float:
-        """u sin(theta) - w cos(theta) of this frame's readings (m/s), the last one where one is missing."""
+    def observe(self, X: np.ndarray, w: np.ndarray, frame: Frame) -> None:
+        """As `OffsetSlope.observe`; a row whose new offset steps restarts its window first."""
+        if self.step is None or self.k == 0:
+            return super().observe(X, w, frame)
+        before = self.a.copy()
+        super().observe(X, w, frame)
+        i = (self.k - 1) % self.t.size
+        last = [(i - 1 - j) % self.t.size for j in range(min(self.STEP_FRAMES, self.k - 1))]
+        prior = before[:, last]
+        seen = np.isfinite(prior).sum(axis=1)
+        recent = np.where(seen > 0, np.where(np.isfinite(prior), prior, 0.0).sum(axis=1)
+                          / np.maximum(seen, 1), np.nan)
+        jumped = np.abs(self.a[:, i] - recent) > self.step
+        if jumped.any():
+            keep = self.a[jumped, i]
+            self.a[jumped] = np.nan
+            self.a[jumped, i] = keep
+
+    def _climb_rate(self, frame: Frame, X: np.ndarray, w: np.ndarray) -> float:
+        """u sin(theta) - w cos(theta) of this frame's readings (m/s), theta less the cloud's mean
+        offset of its item; the last one where a reading is missing."""
         if all(frame.mask[r] for r in self.velocity):
-            u, w, th = (frame.yv[frame.row_of[r]] for r in self.velocity)
-            self.last_rate = float(u * np.sin(th) - w * np.cos(th))
+            u, vw, th = (frame.yv[frame.row_of[r]] for r in self.velocity)
+            if self.attitude.size:
+                th = th - float(X[self.attitude].sum(axis=0) @ w)
+            self.last_rate = float(u * np.sin(th) - vw * np.cos(th))
         return self.last_rate
 
     def _reference(self, X: np.ndarray, w: np.ndarray, frame: Frame) -> np.ndarray:
         """The altimeter rows' reference is the readings' climb (h[:, 0] = -1: the altitude -p_d);
         the other rows' the cloud's, as `OffsetSlope`'s."""
-        self.climb += self.dt * self._climb_rate(frame)
+        self.climb += self.dt * self._climb_rate(frame, X, w)
         cloud = super()._reference(X, w, frame)
         return np.where(self.altimeter, -self.h[:, 0] * self.climb, cloud)
 

@@ -380,9 +380,11 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     return _drift(parts, estimator, layout, meas, N)
 
 
-def _drift_window(estimator: EstimatorConfig, rows: np.ndarray, meas: MeasurementModel, frames: int):
+def _drift_window(estimator: EstimatorConfig, layout: FaultLayout, rows: np.ndarray,
+                  meas: MeasurementModel, frames: int):
     """The window a new drift rate is proposed from: `OffsetSlope`, or with parts.drift_window =
-    "climb" `ClimbOffsetSlope` (the altimeters against the u, w, theta readings' climb)."""
+    "climb" `ClimbOffsetSlope` (the altimeters against the u, w, theta readings' climb, the attitude
+    less its item's additive entries: every type but "noisy")."""
     if estimator.settings.drift_window != "climb":
         return OffsetSlope(rows, meas.H, frames)
     missing = [r for r in ("u", "w", "theta") if r not in estimator.measurements]
@@ -390,7 +392,10 @@ def _drift_window(estimator: EstimatorConfig, rows: np.ndarray, meas: Measuremen
         raise ConfigError(f"parts.drift_window = \"climb\" integrates the u, w and theta readings: "
                           f"expected measurements.rows listing them, missing {missing}")
     velocity = tuple(estimator.measurements.index(r) for r in ("u", "w", "theta"))
-    return ClimbOffsetSlope(rows, meas.H, frames, velocity, estimator.dt_s)
+    attitude = [j for j in range(layout.nf)
+                if layout.sensor_row[j] == velocity[2] and layout.type_of(j) != "noisy"]
+    return ClimbOffsetSlope(rows, meas.H, frames, velocity, estimator.dt_s, np.array(attitude, dtype=int),
+                            meas.sigma[rows])
 
 
 def _row_siblings(layout: FaultLayout, entries: np.ndarray) -> np.ndarray:
@@ -417,7 +422,7 @@ def _drift(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         return parts
     sigma = np.array([estimator.faults[j].rate_sigma for j in drift.tolist()])
     rows = layout.sensor_row[drift]
-    window = _drift_window(estimator, rows, meas, int(round(DRIFT_WINDOW_S / estimator.dt_s)))
+    window = _drift_window(estimator, layout, rows, meas, int(round(DRIFT_WINDOW_S / estimator.dt_s)))
     parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window,
                            DriftAnchor(rows, meas.H, _row_siblings(layout, drift)))
     parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])

@@ -174,6 +174,57 @@ def test_the_climb_window_sees_a_ramp_the_cloud_followed():
     assert load_estimator("aerosonde-catalogue").settings.drift_window == "offset"
 
 
+def _climb_flight(climb: ClimbOffsetSlope, layout: FaultLayout, meas: MeasurementModel, frames: int,
+                  baro, theta_read: float, theta_entry: float) -> None:
+    """Feed `climb` frames of a level cloud at 500 m (u = 40 m/s, w = 0) whose attitude entry holds
+    theta_entry; baro(k) the barometer's reading at frame k, theta_read the attitude reading."""
+    X = np.zeros((layout.n, 1))
+    X[0] = -500.0
+    X[N_AIRFRAME + 1] = theta_entry
+    for k in range(frames):
+        f = Frame.of(k * DT, np.array([baro(k), 40.0, 0.0, theta_read]), np.ones(4, bool), np.zeros(2), meas)
+        climb.observe(X, np.ones(1), f)
+
+
+def _climb_layout() -> tuple[FaultLayout, MeasurementModel]:
+    rows = ("baro_alt", "u", "w", "theta")
+    layout = FaultLayout(("baro_dr", "theta"), ("sensor", "sensor"), ("baro_alt", "theta"), rows,
+                         ("drift", "bias"))
+    return layout, MeasurementModel.build(layout, np.array([1.5, 1.5, 1.5, 0.015]))
+
+
+def test_the_climb_window_takes_the_attitude_less_its_believed_offset():
+    """A 2-deg attitude bias the cloud holds in its entry does not climb: with the entry taken out
+    the level barometer shows no slope; read as it stands, the attitude climbs 1.4 m/s."""
+    layout, meas = _climb_layout()
+    bias = np.radians(2.0)
+    noise = np.random.default_rng(5).normal(0.0, 1.0, 60)
+    guarded = ClimbOffsetSlope(np.array([0]), meas.H, 60, (1, 2, 3), DT, np.array([1]), np.array([1.5]))
+    bare = ClimbOffsetSlope(np.array([0]), meas.H, 60, (1, 2, 3), DT)
+    for win in (guarded, bare):
+        _climb_flight(win, layout, meas, 60, lambda k: 500.0 + noise[k], bias, bias)
+    (b0,), (se0,) = guarded.slope()
+    (b1,), (se1,) = bare.slope()
+    assert abs(b0) < 3 * se0 and se0 < 0.3
+    assert abs(b1 + 40.0 * np.sin(bias)) < 3 * se1
+
+
+def test_the_climb_window_restarts_at_a_step_of_its_offset():
+    """A barometer ramp of 1 m/s that ends with its 15 m step back: the window that spans the
+    step reads a slope of metres per second; the guarded one restarts there and reads ~0 after."""
+    layout, meas = _climb_layout()
+    noise = np.random.default_rng(7).normal(0.0, 1.0, 120)
+    ramp = lambda k: 500.0 + noise[k] + (15.0 * k / 59 if k < 60 else 0.0)     # noqa: E731
+    guarded = ClimbOffsetSlope(np.array([0]), meas.H, 60, (1, 2, 3), DT, np.array([1]), np.array([1.5]))
+    bare = ClimbOffsetSlope(np.array([0]), meas.H, 60, (1, 2, 3), DT)
+    for win in (guarded, bare):
+        _climb_flight(win, layout, meas, 90, ramp, 0.0, 0.0)       # 30 frames past the step
+    (b0,), (se0,) = guarded.slope()
+    (b1,), _ = bare.slope()
+    assert np.isfinite(guarded.a[0]).sum() == 30                   # only the frames since the step
+    assert abs(b0) < 3 * se0 and b1 < -3.0
+
+
 def test_the_correction_moves_a_lagging_rate_and_its_offset_towards_the_data():
     part = DriftJump(StillJump(), np.array([1]), DT, np.array([0.03]), 2)
     inner_calls = []
