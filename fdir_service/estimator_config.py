@@ -122,6 +122,10 @@ class FaultSpec:
     delivered throttle minus the commanded one (the published value is the thrust's share left)."""
     rate_sigma: float = 0.0
     """A drift fault's rate random walk (SI per s per sqrt(s); `drift_type.DriftJump`)."""
+    rate_max: float | None = None
+    """A drift fault's largest rate (SI per s): a new drift's rate has the prior uniform on
+    +-rate_max, and its sentinel carries p / q of the proposed rate (`drift_type.rate_log_weight`);
+    None: the proposal is taken as the prior."""
     value_max: float | None = None
     """The largest |entry| the fault can reach (SI), file key `value_max` (default amplitude_max):
     under parts.mode0 = "drift" every entry is held within it (`predict.DriftPredict`). A held
@@ -367,6 +371,7 @@ def _fault(t: TomlTable, rows: tuple[str, ...]) -> FaultSpec:
         fold_window_s=t.take("fold_window_s", "number", 10.0, check=POSITIVE),
         fold_young_s=t.take("fold_young_s", "number", 3.0, check=NON_NEGATIVE),
         rate_sigma=t.take("rate_sigma", "number", 0.0, check=NON_NEGATIVE),
+        rate_max=t.take("rate_max", "number", None, check=POSITIVE),
         value_max=None if vmax is None else vmax * UNITS[unit],
         fault_type=t.take("type", "string", "bias",
                           choices=ACTUATOR_FAULT_TYPES if target in ACTUATORS else SENSOR_FAULT_TYPES),
@@ -395,6 +400,9 @@ def _check_fault(t: TomlTable, spec: FaultSpec) -> None:
     if spec.fold_after is not None and spec.on_exit != "reset_or_fold":
         raise ConfigError(f"{t.key('fold_after')}: only a fault that folds can wait for another's; "
                           f"expected on_exit = \"reset_or_fold\", got {spec.on_exit!r}")
+    if spec.rate_max is not None and spec.fault_type != "drift":
+        raise ConfigError(f"{t.key('rate_max')}: only a drift has a rate; expected type = \"drift\" "
+                          f"for a fault with rate_max, got {spec.fault_type!r}")
     if spec.fold_after == spec.target:
         raise ConfigError(f"{t.key('fold_after')}: expected another sensor's row than the fault's "
                           f"own, got {spec.fold_after!r}")

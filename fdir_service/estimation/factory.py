@@ -423,8 +423,9 @@ def _drift(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
     sigma = np.array([estimator.faults[j].rate_sigma for j in drift.tolist()])
     rows = layout.sensor_row[drift]
     window = _drift_window(estimator, layout, rows, meas, int(round(DRIFT_WINDOW_S / estimator.dt_s)))
+    rate_max = np.array([estimator.faults[j].rate_max or np.nan for j in drift.tolist()])
     parts.jump = DriftJump(parts.jump, drift, estimator.dt_s, sigma, N, window,
-                           DriftAnchor(rows, meas.H, _row_siblings(layout, drift)))
+                           DriftAnchor(rows, meas.H, _row_siblings(layout, drift)), rate_max)
     parts.correction = DriftCorrection(parts.correction, parts.jump, rows, meas.sigma[rows])
     return parts
 

@@ -10,19 +10,23 @@ import pytest
 
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.drift_type import (
+    RATE_LOG_WEIGHT_FLOOR,
+    T_MAX_S,
+    T_MIN_S,
     ClimbOffsetSlope,
     DriftAnchor,
     DriftCorrection,
     DriftJump,
     OffsetSlope,
     alpha_beta,
+    rate_log_weight,
 )
 from fdir_service.estimation.factory import build_filter
 from fdir_service.estimation.frame import Frame
 from fdir_service.estimation.jump import MarkovJump
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
-from fdir_service.estimator_config import estimator_document, load_estimator, parse_estimator
+from fdir_service.estimator_config import ConfigError, estimator_document, load_estimator, parse_estimator
 from fdir_service.runtime.items import TYPE_NAMES, type_code
 from fdir_service.runtime.publishing import statustext_for
 
@@ -137,6 +141,48 @@ def test_a_new_drift_fault_takes_a_rate_from_its_offset():
     r = part.R[0]
     assert (r > 6.0 / 30 - 1e-9).all() and (r < 6.0 + 1e-9).all()
     assert np.median(r) == pytest.approx(6.0 / np.sqrt(30.0), rel=0.1)
+
+
+def test_a_rate_is_weighed_by_its_prior_over_its_proposal():
+    """faults.rate_max: log p(r) - log q(r) with p uniform on +-rate_max and q the proposal's
+    density, capped at 0; a rate the proposal could not draw takes the floor."""
+    log_p = np.full(3, -np.log(10.0))                                # rate_max 5
+    offset = np.full(3, 6.0)
+    r = np.array([1.0, 6.0, -1.0])
+    term = rate_log_weight(r, offset, log_p, None)
+    q1 = 1.0 / (1.0 * np.log(T_MAX_S / T_MIN_S))                      # offset / T, T log-uniform
+    assert term[0] == pytest.approx(-np.log(10.0) - np.log(q1))       # about -1.1 nats
+    assert term[1] == 0.0                                             # p > q there: capped
+    assert term[2] == RATE_LOG_WEIGHT_FLOOR                           # the wrong sign: never drawn
+    b, s = np.full(3, 1.0), np.full(3, 0.2)                           # a window's slope 1 +- 0.2
+    mixed = rate_log_weight(r, offset, log_p, (b, s))
+    qn = np.exp(0.0) / (np.sqrt(2 * np.pi) * 0.2)
+    assert mixed[0] == pytest.approx(-np.log(10.0) - np.log(0.5 * q1 + 0.5 * qn))   # about -2.3
+
+
+def test_new_drift_faults_carry_their_rate_weight_and_no_other_particle_does():
+    class Enter(StillJump):
+        def jump(self, X, modes, w, frame, rng):
+            modes[1, ::2] = True
+            X[N_AIRFRAME + 1, ::2] = 6.0
+    X = np.zeros((LAYOUT.n, 10))
+    args = (X, np.zeros((2, 10), dtype=bool), np.full(10, 0.1), frame())
+    plain = DriftJump(Enter(), np.array([1]), DT, np.zeros(1), 10)
+    assert plain.jump(*args, np.random.default_rng(4)) is None       # no rate_max: as before
+    X[:] = 0.0
+    args[1][:] = False
+    part = DriftJump(Enter(), np.array([1]), DT, np.zeros(1), 10, rate_max=np.array([5.0]))
+    lw = part.jump(*args, np.random.default_rng(4))
+    np.testing.assert_array_equal(part.R, plain.R)                   # the same draws
+    expected = rate_log_weight(part.R[0, ::2], np.full(5, 6.0), np.full(5, -np.log(10.0)), None)
+    np.testing.assert_allclose(lw[::2], expected)
+    assert (lw[::2] < 0).all() and not lw[1::2].any()
+
+
+def test_a_rate_max_belongs_to_a_drift():
+    with pytest.raises(ConfigError, match=r"rate_max.*only a drift has a rate"):
+        drift_estimator(type="bias", rate_max=2.0)
+    assert drift_estimator(rate_max=2.0).faults[-1].rate_max == 2.0
 
 
 def test_the_offset_window_measures_a_ramps_slope():
