@@ -148,14 +148,13 @@ class ClimbOffsetSlope(OffsetSlope):
         """As `OffsetSlope.observe`; a row whose new offset steps restarts its window first."""
         if self.step is None or self.k == 0:
             return super().observe(X, w, frame)
-        before = self.a.copy()
-        super().observe(X, w, frame)
-        i = (self.k - 1) % self.t.size
-        last = [(i - 1 - j) % self.t.size for j in range(min(self.STEP_FRAMES, self.k - 1))]
-        prior = before[:, last]
+        i = self.k % self.t.size                                   # the slot this frame fills
+        last = [(i - 1 - j) % self.t.size for j in range(min(self.STEP_FRAMES, self.k))]
+        prior = self.a[:, last]
         seen = np.isfinite(prior).sum(axis=1)
         recent = np.where(seen > 0, np.where(np.isfinite(prior), prior, 0.0).sum(axis=1)
                           / np.maximum(seen, 1), np.nan)
+        super().observe(X, w, frame)
         jumped = np.abs(self.a[:, i] - recent) > self.step
         if jumped.any():
             keep = self.a[jumped, i]
@@ -302,8 +301,9 @@ class DriftJump(JumpWrapper):
         self.R *= after
         if new.any():
             offset = self._offset(X[js], new)
-            self.R[new] = self._propose(offset, new, rng)
-            lw = self._weigh_rates(lw, offset, new, X.shape[1])
+            window = self._window_slope(new) if self.window is not None else None
+            self.R[new] = self._propose(offset, window, rng)
+            lw = self._weigh_rates(lw, offset, window, new, X.shape[1])
         return lw
 
     def _offset(self, F: np.ndarray, new: np.ndarray) -> np.ndarray:
@@ -312,14 +312,15 @@ class DriftJump(JumpWrapper):
         centre = drift.value[self.faults] if drift is not None else np.zeros(self.faults.size)
         return (F - centre[:, None])[new]
 
-    def _propose(self, offset: np.ndarray, new: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """(c,) rates of the c new drift faults: offset / T, T log-uniform; with a window, for
-        WINDOW_SHARE of them N(b, s^2) about its slope b (s its standard error, at most |b|)."""
+    def _propose(self, offset: np.ndarray, window: tuple[np.ndarray, np.ndarray] | None,
+                 rng: np.random.Generator) -> np.ndarray:
+        """(c,) rates of the c new drift faults: offset / T, T log-uniform; with a window (its
+        `_window_slope`), for WINDOW_SHARE of them N(b, s^2) about its slope b."""
         T = np.exp(rng.uniform(np.log(T_MIN_S), np.log(T_MAX_S), offset.size))
         r = offset / T
-        if self.window is None:
+        if window is None:
             return r
-        b, s = self._window_slope(new)
+        b, s = window
         slope = b + s * rng.standard_normal(b.size)
         return np.where(rng.random(b.size) < WINDOW_SHARE, slope, r)
 
@@ -329,7 +330,8 @@ class DriftJump(JumpWrapper):
         rows = np.nonzero(new)[0]
         return b[rows], np.minimum(se[rows], np.abs(b[rows]) + 1e-12)
 
-    def _weigh_rates(self, lw: np.ndarray | None, offset: np.ndarray, new: np.ndarray,
+    def _weigh_rates(self, lw: np.ndarray | None, offset: np.ndarray,
+                     window: tuple[np.ndarray, np.ndarray] | None, new: np.ndarray,
                      N: int) -> np.ndarray | None:
         """lw (N,) (None: zeros) plus each new drift fault's `rate_log_weight` where its entry has
         a prior (faults.rate_max); lw unchanged where none has."""
@@ -338,7 +340,6 @@ class DriftJump(JumpWrapper):
         has = np.isfinite(log_p)
         if not has.any():
             return lw
-        window = self._window_slope(new) if self.window is not None else None
         term = rate_log_weight(self.R[new], offset, log_p, window)
         out = np.zeros(N) if lw is None else lw
         np.add.at(out, cols[has], term[has])
