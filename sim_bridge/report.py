@@ -177,9 +177,13 @@ ENVIRONMENT_PACKAGES = ("numpy", "scipy", "jsbsim")
 
 
 def environment() -> dict[str, str]:
-    """Python's and ENVIRONMENT_PACKAGES' versions, and the machine (`platform.machine`). The same
-    code and seed fly the same bits on the same builds; another numpy build may round differently,
-    and a world whose faults upset the aircraft amplifies that into other flights."""
+    """Python's and ENVIRONMENT_PACKAGES' versions, the machine (`platform.machine`), and what else
+    decides the bits on a machine: numpy's SIMD kernels in use (`numpy_simd`, set by
+    NPY_DISABLE_CPU_FEATURES), the BLAS library's kernel for this CPU (`blas_core`, threadpoolctl)
+    and the code's commit (`commit`, "-dirty" with uncommitted changes; "unknown" outside git).
+    The same code and seed fly the same bits on the same builds and kernels; another build or
+    kernel may round differently, and a world whose faults upset the aircraft amplifies that into
+    other flights."""
     import platform
     from importlib.metadata import PackageNotFoundError, version
 
@@ -190,15 +194,51 @@ def environment() -> dict[str, str]:
             return "absent"
 
     return {"python": platform.python_version(), **{n: ver(n) for n in ENVIRONMENT_PACKAGES},
-            "machine": platform.machine()}
+            "machine": platform.machine(), "numpy_simd": _numpy_simd(), "blas_core": _blas_core(),
+            "commit": _commit()}
+
+
+def _numpy_simd() -> str:
+    """numpy's dispatched SIMD targets this process uses, e.g. "X86_V3" ("" if numpy hides them)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    except ImportError:
+        return ""
+    return " ".join(t for t in __cpu_dispatch__ if __cpu_features__.get(t))
+
+
+def _blas_core() -> str:
+    """The BLAS libraries' names and CPU kernels, e.g. "openblas 0.3.31 Haswell"."""
+    from threadpoolctl import threadpool_info
+
+    return ", ".join(f"{i.get('internal_api', '?')} {i.get('version', '?')} {i.get('architecture', '?')}"
+                     for i in threadpool_info() if i.get("user_api") == "blas")
+
+
+def _commit() -> str:
+    """`git describe --always --dirty` of the package's tree, "unknown" where there is none."""
+    import subprocess
+    from pathlib import Path
+
+    try:
+        out = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"],
+                             cwd=Path(__file__).resolve().parent, capture_output=True, text=True,
+                             timeout=10, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return out.stdout.strip() or "unknown"
 
 
 def _environment_text(env: dict[str, str] | None) -> str:
-    """' Flown with Python 3.11.7, numpy 2.4.6, ... (x86_64).' ('' without a record)."""
+    """' Flown with Python 3.11.7, numpy 2.4.6, ... (x86_64; numpy SIMD X86_V3, BLAS openblas
+    0.3.31 Haswell; code 1a2b3c4d5e6f).' ('' without a record; older records lack the last three)."""
     if not env:
         return ""
     pkgs = ", ".join(f"{n} {env[n]}" for n in ENVIRONMENT_PACKAGES if n in env)
-    return f" Flown with Python {env.get('python', '?')}, {pkgs} ({env.get('machine', '?')})."
+    extra = [f"{label} {env[key]}" for key, label in (("numpy_simd", "numpy SIMD"),
+             ("blas_core", "BLAS"), ("commit", "code")) if env.get(key)]
+    where = "; ".join([env.get("machine", "?"), *extra])
+    return f" Flown with Python {env.get('python', '?')}, {pkgs} ({where})."
 
 
 def summarise(camp: Campaign) -> dict:

@@ -134,6 +134,12 @@ def test_results_json_structure_and_values(ch4, tmp_path):
     assert 0.4 < on_disk["filters"]["JMRPF"]["rmse"]["theta"]["mean"] < 0.65  # closed loop: a bit below
     report = (tmp_path / "report.md").read_text()
     assert "| f_gnss | m |" in report and "thesis mean" in report
+    # what decides the bits is recorded: numpy's SIMD kernels (pinned by make), the BLAS kernel, the code
+    env = on_disk["environment"]
+    assert {"numpy", "machine", "numpy_simd", "blas_core", "commit"} <= set(env)
+    assert "AVX512" not in env["numpy_simd"] and "X86_V4" not in env["numpy_simd"]
+    assert env["blas_core"] and env["commit"]
+    assert f"numpy SIMD {env['numpy_simd']}" in report or not env["numpy_simd"]
     for png in ("fault_estimates_median.png", "rmse_faults.png", "rmse_states.png", "top_particles.png"):
         assert (tmp_path / png).stat().st_size > 10_000
     orders = check_orderings({"ch4": on_disk})
