@@ -341,11 +341,13 @@ def run_activity(scenario: Any, sim_seeds: np.ndarray, t: np.ndarray) -> np.ndar
 
 
 def scenario_yardsticks(scenario: Any, t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray,
-                        world_faults: np.ndarray, sim_seeds: np.ndarray) -> tuple[dict, dict]:
+                        world_faults: np.ndarray, sim_seeds: np.ndarray,
+                        rule: Hysteresis | None = None) -> tuple[dict, dict]:
     """A typed world's inputs to the strict yardstick, by item as the service declares
     ({"prob": (R, K, ni) P(item faulty), "fault_ids": item names, "right": per world fault its
     item, "world_active": (R, K, nw)}), and the per-type pool (`typed_yardstick`).
-    prob, f_hat (R, K, nf); world_faults (R, K, nw) additive-equivalent truth (SI)."""
+    prob, f_hat (R, K, nf); world_faults (R, K, nw) additive-equivalent truth (SI); rule: the
+    per-type pool's hysteresis (default: the service's)."""
     entries = [kind_of(f) for f in scenario.estimator.faults]
     names = [f.id for f in scenario.estimator.faults]
     active = run_activity(scenario, sim_seeds, t)
@@ -353,4 +355,4 @@ def scenario_yardsticks(scenario: Any, t: np.ndarray, prob: np.ndarray, f_hat: n
     view = item_view(prob, entries, names)
     right = [[i for i, tg in enumerate(view.targets) if tg == f.kind.target] for f in faults]
     strict = {"prob": view.prob, "fault_ids": view.names, "right": right, "world_active": active}
-    return strict, typed_yardstick(t, prob, f_hat, entries, names, faults, world_faults, active)
+    return strict, typed_yardstick(t, prob, f_hat, entries, names, faults, world_faults, active, rule)

@@ -131,7 +131,8 @@ class ItemDriftMemory(DriftMemory):
     sensor's fault-free error. The pitot's wind entry of a blocked particle wanders with the gust
     model; at an engine's return in real-engine run 63 those winds made the memory's airspeed
     42.3 m/s where the pitot read 40. Measured, not a default: real-engine 5 -> 6 false alarms,
-    real-pitot 3 -> 3, real-stuck 4 -> 2 (docs/faults.md, "The held airspeed after a let-go").
+    real-pitot 3 -> 3, real-stuck 4 -> 2 (docs/faults.md, "The held airspeed after a let-go");
+    real-actuators 10 -> 21, real-drift 21 -> 17 (stop 51, "The fault-free value by item").
 
     item (nf, nf): 1 where two entries are on the same item (a measurement row or an input), the
     diagonal included."""
