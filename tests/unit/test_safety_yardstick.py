@@ -200,3 +200,22 @@ def test_a_declaration_that_outlives_its_fault_into_fault_free_time_is_a_false_a
     quiet_s = 100.0 - 10.0 - GRACE_S
     declared_s = 70.0 + 1.0 - (40.0 + GRACE_S)                # cleared 1 s (clear hold) after 70 s
     assert y["falsely_declared_fraction"] == pytest.approx(declared_s / quiet_s, abs=0.01)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_longer_declare_hold_declares_a_subset_later_and_clears_on_the_same_frame(seed: int):
+    """benchmarks/declare_hold.py's premise: a longer hold can only take false alarms away."""
+    rng = np.random.default_rng(seed)
+    t = _t(120.0)
+    p = np.clip(0.55 + 0.5 * np.sin(t / 1.3) + rng.normal(0.0, 0.15, t.size), 0.0, 1.0)  # over the band
+    short = declared(t, p, RULE)
+    assert short.sum() > 40 and (~short).sum() > 40                   # both states visited
+    for hold in (0.3, 0.5, 1.0):
+        long = declared(t, p, Hysteresis(0.9, hold, 0.5, 1.0))
+        assert not (long & ~short).any()                              # a subset of the frames
+        ends_short = np.flatnonzero(short[:-1] & ~short[1:])
+        ends_long = np.flatnonzero(long[:-1] & ~long[1:])
+        assert set(ends_long) <= set(ends_short)                      # each clears where the short one did
+    starts = [np.count_nonzero(d[1:] & ~d[:-1]) for d in
+              (short, declared(t, p, Hysteresis(0.9, 0.5, 0.5, 1.0)))]
+    assert starts[0] > starts[1] > 0                                  # fewer declarations, not none
