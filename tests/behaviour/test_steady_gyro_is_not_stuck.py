@@ -16,7 +16,7 @@ import pytest
 
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
-from tests.helpers.declarations import first_declarations
+from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51, first_declarations
 
 
 def declared_items(**parts: str) -> dict[str, float]:
@@ -24,7 +24,8 @@ def declared_items(**parts: str) -> dict[str, float]:
     with the catalogue's [parts] changed by `parts`."""
     sc = load_scenario("real-catalogue-faultfree")
     est = sc.estimator
-    est = dataclasses.replace(est, settings=dataclasses.replace(est.settings, **parts))
+    est = dataclasses.replace(est, settings=dataclasses.replace(est.settings,
+                                                                **{**ATTITUDE_BEFORE_STOP_51, **parts}))
     sc = dataclasses.replace(sc, estimator=est, navigation="truth", duration_s=195.0)
     return first_declarations(est.faults, fly(sc, "RJMRPF", 21, 0))
 

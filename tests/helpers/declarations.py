@@ -7,6 +7,12 @@ import numpy as np
 from sim_bridge.type_yardstick import item_view, kind_of
 from sim_bridge.yardstick import Hysteresis, declared
 
+ATTITUDE_BEFORE_STOP_51 = {"sigma_x": (0.02, 0.1, 0.15, 0.002, 0.15), "frame_angle": "trapezoid"}
+"""The catalogue's attitude when the flights its behaviour tests pin were traced: theta's process
+noise 0.002 rad/sqrt(s) and the trapezoid everywhere (0.001 and "snap" since stop 51; docs/faults.md,
+"The attitude's process noise"). Those tests keep it, so that each flight fails, or is mended, the
+way it was traced."""
+
 
 def first_declarations(faults, tr) -> dict[str, float]:
     """{item: first declared frame's time (s)} of a flight `tr` (its outputs' fault_probability)
