@@ -26,11 +26,12 @@ from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
 from sim_bridge.type_yardstick import item_view, kind_of
 from sim_bridge.yardstick import Hysteresis, declared
+from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51
 
 RAMP_S, AFTER_S = (51.6, 65.2), (68.2, 90.0)
 
 
-THETA_NOISE_BEFORE = 0.002
+THETA_NOISE_BEFORE = ATTITUDE_BEFORE_STOP_51["sigma_x"][3]
 """rad / sqrt(s): the attitude's process noise when the failure was traced (0.001 since stop 51)."""
 
 
