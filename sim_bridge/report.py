@@ -216,14 +216,17 @@ def _blas_core() -> str:
 
 
 def _commit() -> str:
-    """`git describe --always --dirty` of the package's tree, "unknown" where there is none."""
+    """`git describe --always --dirty` of the package's tree, "unknown" where there is none (or
+    where this file is not tracked there: an installed copy inside some other repository)."""
     import subprocess
     from pathlib import Path
 
+    here = Path(__file__).resolve()
     try:
-        out = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"],
-                             cwd=Path(__file__).resolve().parent, capture_output=True, text=True,
-                             timeout=10, check=True)
+        for cmd in (["git", "ls-files", "--error-unmatch", here.name],
+                    ["git", "describe", "--always", "--dirty", "--abbrev=12"]):
+            out = subprocess.run(cmd, cwd=here.parent, capture_output=True, text=True, timeout=10,
+                                 check=True)
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return out.stdout.strip() or "unknown"
