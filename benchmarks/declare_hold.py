@@ -26,9 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from sim_bridge.campaign import run_campaign
+from sim_bridge.report import scenario_yardstick
 from sim_bridge.scenario import load_scenario
-from sim_bridge.type_yardstick import is_typed, item_view, kind_of, scenario_yardsticks
-from sim_bridge.yardstick import Hysteresis, declarations, rate_upper_bound, yardstick
+from sim_bridge.type_yardstick import item_view, kind_of
+from sim_bridge.yardstick import Hysteresis, declarations, rate_upper_bound
 
 FILTER = "RJMRPF"
 TRACE_KEYS = ("t", "prob", "f_hat", "world_faults", "sim_seeds", "world_active")
@@ -49,16 +50,9 @@ def traces(world: str, runs: int, seed: int, workers: int, path: Path | None) ->
 
 
 def score(sc, tr: dict, rule: Hysteresis) -> dict:
-    """The campaign's yardstick (`report._yardstick`'s) of the traces under rule."""
-    ids, wids = [f.id for f in sc.estimator.faults], [f.id for f in sc.faults]
-    if not (is_typed(sc.faults) or is_typed(sc.estimator.faults)):
-        return yardstick(tr["t"], tr["prob"], ids, tr["world_faults"], wids, rule=rule,
-                         thresholds=(), world_active=tr["world_active"])
-    strict, by_type = scenario_yardsticks(sc, tr["t"], tr["prob"], tr["f_hat"], tr["world_faults"],
-                                          tr["sim_seeds"], rule)
-    items = yardstick(tr["t"], strict.pop("prob"), strict.pop("fault_ids"), tr["world_faults"], wids,
-                      rule=rule, thresholds=(), **strict)
-    return {**items, "by_type": by_type}
+    """The campaign's yardstick (`report.scenario_yardstick`) of the traces under rule, no ROC."""
+    return scenario_yardstick(sc, tr["t"], tr["prob"], tr["f_hat"], tr["world_faults"],
+                              tr["world_active"], tr["sim_seeds"], rule=rule, thresholds=())
 
 
 def standing_from_before(sc, tr: dict, rule: Hysteresis, y: dict) -> int:

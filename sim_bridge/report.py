@@ -26,7 +26,7 @@ from sim_bridge.metrics import (
 )
 from sim_bridge.scenario import Scenario
 from sim_bridge.type_yardstick import GOALS, MISSED, is_typed, scenario_yardsticks
-from sim_bridge.yardstick import GRACE_S, rate_upper_bound, yardstick
+from sim_bridge.yardstick import GRACE_S, ROC_THRESHOLDS, Hysteresis, rate_upper_bound, yardstick
 
 DEG = 180.0 / math.pi
 STATE_QUANTITIES = (("p_d", "m", 1.0), ("u", "m/s", 1.0), ("w", "m/s", 1.0), ("theta", "deg", DEG),
@@ -276,13 +276,25 @@ def _yardstick(camp: Campaign, fr: FilterRuns) -> dict | None:
     """The safety yardstick (sim_bridge.yardstick) of one filter's runs."""
     if fr.world_faults is None:
         return None
-    sc = camp.scenario
+    return scenario_yardstick(camp.scenario, fr.t, fr.prob, fr.f_hat, fr.world_faults,
+                              fr.world_active, fr.sim_seeds)
+
+
+def scenario_yardstick(sc: Scenario, t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray,
+                       world_faults: np.ndarray, world_active: np.ndarray | None, sim_seeds: np.ndarray,
+                       rule: Hysteresis | None = None, thresholds: tuple[float, ...] = ROC_THRESHOLDS
+                       ) -> dict:
+    """results.json's `yardstick` of R runs' traces (prob, f_hat (R, K, nf); world_faults,
+    world_active (R, K, nw); sim_seeds (R,)) under rule (default: the service's hysteresis), with
+    the ROC over thresholds; "by_type" too for a typed world or estimator."""
     ids, wids = [f.id for f in sc.estimator.faults], [f.id for f in sc.faults]
     if not (is_typed(sc.faults) or is_typed(sc.estimator.faults)):   # bias only: matched by id
-        return yardstick(fr.t, fr.prob, ids, fr.world_faults, wids, world_active=fr.world_active)
+        return yardstick(t, prob, ids, world_faults, wids, rule=rule, thresholds=thresholds,
+                         world_active=world_active)
     # a typed world, or a typed estimator (its fault-free worlds too): by item, as the service declares
-    strict, by_type = scenario_yardsticks(sc, fr.t, fr.prob, fr.f_hat, fr.world_faults, fr.sim_seeds)
-    items = yardstick(fr.t, strict.pop("prob"), strict.pop("fault_ids"), fr.world_faults, wids, **strict)
+    strict, by_type = scenario_yardsticks(sc, t, prob, f_hat, world_faults, sim_seeds, rule)
+    items = yardstick(t, strict.pop("prob"), strict.pop("fault_ids"), world_faults, wids, rule=rule,
+                      thresholds=thresholds, **strict)
     return {**items, "by_type": by_type}
 
 

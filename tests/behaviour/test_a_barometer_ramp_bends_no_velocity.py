@@ -31,20 +31,14 @@ from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51
 RAMP_S, AFTER_S = (51.6, 65.2), (68.2, 90.0)
 
 
-THETA_NOISE_BEFORE = ATTITUDE_BEFORE_STOP_51["sigma_x"][3]
-"""rad / sqrt(s): the attitude's process noise when the failure was traced (0.001 since stop 51)."""
-
-
-def barometer(altimeter_gain: str, theta_noise: float | None = THETA_NOISE_BEFORE
+def barometer(altimeter_gain: str, attitude_before: bool = True
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(baro declared during the ramp, its drift entry's P then, baro declared after it) per frame;
-    theta_noise: the attitude's process noise (None: the catalogue's own)."""
+    attitude_before: the catalogue's attitude when the failure was traced (else today's)."""
     sc = load_scenario("real-drift")
-    sigma_x = list(sc.estimator.settings.sigma_x)
-    if theta_noise is not None:
-        sigma_x[3] = theta_noise
+    pinned = ATTITUDE_BEFORE_STOP_51 if attitude_before else {}
     parts = dataclasses.replace(sc.estimator.settings, altimeter_gain=altimeter_gain, moment_wind="entry",
-                                sigma_x=tuple(sigma_x))
+                                **pinned)
     est = dataclasses.replace(sc.estimator, settings=parts)
     tr = fly(dataclasses.replace(sc, estimator=est, duration_s=AFTER_S[1]), "RJMRPF", 18, 0)
     P = np.array([o.fault_probability for o in tr.outputs])
@@ -69,6 +63,6 @@ def test_bending_every_state_the_ramp_passes_and_the_barometer_is_blamed_after_i
 
 
 def test_with_the_stiffer_attitude_the_ramp_is_a_drift_under_the_default_gain_too():
-    during, p_drift, after = barometer("all_states", theta_noise=None)
+    during, p_drift, after = barometer("all_states", attitude_before=False)
     assert during[-40:].all() and p_drift[-40:].mean() > 0.8
     assert not after.any()
