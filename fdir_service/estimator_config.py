@@ -228,7 +228,11 @@ class FilterSettings:
     #                                      declared pitot: "cloud" (every particle's) | "held" (the
     #                                      airspeed held before the let-go)
     fault_free_memory: str = "entry"     # the fault-free value exits return to, from the particles whose
-    #                                      entry is in mode 0 ("entry") | whose whole item is ("item")
+    #                                      entry is in mode 0 ("entry") | whose whole item is ("item") |
+    #                                      the inputs' by item, the rows' by entry ("input_item") |
+    #                                      the inputs' and the pitot's (its wind) by item ("wind_input_item")
+    fault_free_rollback_s: float = 0.0   # s: a fault-free value that freezes takes back its value of
+    #                                      that long before (0: off; `jump.MemoryRollback`)
     drift_window: str = "offset"         # a new drift rate's window: the offset against the cloud
     #                                      ("offset") | the altimeters' against the readings' climb ("climb")
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
@@ -490,7 +494,7 @@ _CHOICES = {
     "moment_alpha": ("lift", "stall_blend"),
     "moment_wind": ("entry", "fault_free"),
     "hold_resume": ("cloud", "held"),
-    "fault_free_memory": ("entry", "item"),
+    "fault_free_memory": ("entry", "item", "input_item", "wind_input_item"),
     "drift_window": ("offset", "climb"),
     "altitude_gain": ALTITUDE_GAINS, "gain_covariance": GAIN_COVARIANCES, "altimeter_gain": ALTIMETER_GAINS,
     "faulty_row_gain": FAULTY_ROW_GAINS,
@@ -517,6 +521,8 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         rate_window_s=f.take("rate_window_s", "number", d.rate_window_s, check=POSITIVE),
         thrust_sigma=f.take("thrust_sigma", "number", d.thrust_sigma, check=POSITIVE),
         sentinel_clip=f.take("sentinel_clip", "number", d.sentinel_clip, check=NON_NEGATIVE),
+        fault_free_rollback_s=f.take("fault_free_rollback_s", "number", d.fault_free_rollback_s,
+                                     check=NON_NEGATIVE),
         q_tail=tuple(f.take("q_tail", "numbers", d.q_tail, check=ALL_NON_NEGATIVE)),
         q_noise_tau_s=f.take("q_noise_tau_s", "number", d.q_noise_tau_s, check=POSITIVE),
         wind_gust_sigma=f.take("wind_gust_sigma", "number", d.wind_gust_sigma, check=NON_NEGATIVE),

@@ -46,12 +46,14 @@ from fdir_service.estimation.imm import IMMKalman
 from fdir_service.estimation.inputs import RowSplit
 from fdir_service.estimation.jump import (
     ActuatorCarry,
+    DriftMemory,
     ExitFold,
     FaintExit,
     FixedTransition,
     FoldArming,
     ItemDriftMemory,
     MarkovJump,
+    MemoryRollback,
     NoCarry,
     NoFold,
     NoJump,
@@ -301,7 +303,29 @@ def _jump_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout, me
     exit_ = FaintExit(amp.sigma, faint) if faint > 0 else None
     jump = MarkovJump(_transition(rec, estimator, amp, roc), amp, forced_zero, carry, fold, exit_,
                       exit_to_drift=estimator.settings.mode0 == "drift")
+    _memory_rollback(jump.drift, estimator)
     return jump, _sentinel_weighting(estimator, layout, meas, amp, carry)
+
+
+def _kept_by_item(estimator: EstimatorConfig, layout: FaultLayout) -> np.ndarray:
+    """(nf,) bool: the entries whose fault-free value is kept by item (parts.fault_free_memory):
+    every entry ("item"), the inputs' ("input_item"), the inputs' and the pitot's, whose mode-0
+    entry is the wind ("wind_input_item")."""
+    memory = estimator.settings.fault_free_memory
+    inputs = np.array([k != "sensor" or memory == "item" for k in layout.kinds], dtype=bool)
+    if memory == "wind_input_item":
+        inputs |= np.array([t == "airspeed" for t in layout.targets], dtype=bool)
+    return inputs
+
+
+def _memory_rollback(memory: DriftMemory | None, estimator: EstimatorConfig,
+                     entries: np.ndarray | None = None) -> None:
+    """Give the fault-free memory its `MemoryRollback` (parts.fault_free_rollback_s > 0) for the
+    entries (nf,) bool (None: all)."""
+    seconds = estimator.settings.fault_free_rollback_s
+    if memory is not None and seconds > 0:
+        steps = max(1, int(round(seconds / estimator.dt_s)))
+        memory.rollback = MemoryRollback(memory.value.size, steps, entries)
 
 
 def _fold_arming(estimator: EstimatorConfig) -> FoldArming | None:
@@ -365,8 +389,12 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
         held = parts.jump.exclusion
         parts.jump.exclusion = ItemExclusion(one_type if held is None
                                              else np.maximum(one_type, held.excludes))
-    if estimator.settings.fault_free_memory == "item" and parts.jump.drift is not None:
-        parts.jump.drift = ItemDriftMemory(same_item(layout))
+    memory = estimator.settings.fault_free_memory
+    if memory != "entry" and parts.jump.drift is not None:
+        inputs = _kept_by_item(estimator, layout)
+        eye = np.eye(layout.nf, dtype=bool)
+        parts.jump.drift = ItemDriftMemory(np.where(inputs[:, None], same_item(layout), eye))
+        _memory_rollback(parts.jump.drift, estimator, inputs)
     parts.predict = TypedPredict(parts.predict, evolution, layout)
     noisy = evolution.noisy
     rows = np.maximum(layout.sensor_row, layout.noisy_row)

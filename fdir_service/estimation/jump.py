@@ -116,12 +116,55 @@ class DriftMemory:
 
     def __init__(self, nf: int) -> None:
         self.value = np.zeros(nf)
+        self.rollback: MemoryRollback | None = None
+        """None, or the `MemoryRollback` of parts.fault_free_rollback_s."""
 
     def update(self, F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Take this step's mode-0 means where mode 0 has > half the weight; returns value (nf,)."""
         mean, share = mode0_mean(F, modes, w)
-        np.copyto(self.value, mean, where=share > 0.5)
+        return self._take(mean, share > 0.5)
+
+    def _take(self, mean: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """value <- mean (nf,) where live (nf,) bool, after any rollback of the entries that froze."""
+        if self.rollback is not None:
+            self.rollback.before(self.value, live)
+        np.copyto(self.value, mean, where=live)
+        if self.rollback is not None:
+            self.rollback.after(self.value)
         return self.value
+
+
+class MemoryRollback:
+    """The fault-free value as it was `steps` frames before it froze (parts.fault_free_rollback_s).
+
+    The value follows its fault-free particles' mean until they fall below half the weight, which
+    happens only once the fault's hypothesis has won. Until then those particles' drift absorbed
+    part of the fault: an engine's lost thrust moved the throttle's value by 0.06 in the 1.5 s
+    before the engine's hypothesis won (real-engine run 44), and every exit after the fault
+    returned there. An entry whose value freezes takes back the value it had `steps` frames before.
+    The cost: the sensor's true slow error over those frames (drift_sigma sqrt(steps dt)) is lost.
+    """
+
+    def __init__(self, nf: int, steps: int, entries: np.ndarray | None = None) -> None:
+        self.past = np.zeros((int(steps), nf))
+        """Ring of the last `steps` values (nf,), the oldest at `k`."""
+        self.k = 0
+        self.live = np.zeros(nf, dtype=bool)
+        """(nf,) bool: the entries that followed their mean last step."""
+        self.entries = np.ones(nf, dtype=bool) if entries is None else np.asarray(entries, dtype=bool)
+        """(nf,) bool: the entries that roll back (the others freeze where they are)."""
+
+    def before(self, value: np.ndarray, live: np.ndarray) -> None:
+        """Roll back, in place, the entries of value (nf,) that freeze this step (live (nf,) bool)."""
+        froze = self.live & ~live & self.entries
+        if froze.any():
+            np.copyto(value, self.past[self.k], where=froze)
+        self.live = live
+
+    def after(self, value: np.ndarray) -> None:
+        """Keep this step's value (nf,)."""
+        self.past[self.k] = value
+        self.k = (self.k + 1) % self.past.shape[0]
 
 
 class ItemDriftMemory(DriftMemory):
@@ -132,10 +175,13 @@ class ItemDriftMemory(DriftMemory):
     model; at an engine's return in real-engine run 63 those winds made the memory's airspeed
     42.3 m/s where the pitot read 40. Measured, not a default: real-engine 5 -> 6 false alarms,
     real-pitot 3 -> 3, real-stuck 4 -> 2 (docs/faults.md, "The held airspeed after a let-go");
-    real-actuators 10 -> 21, real-drift 21 -> 17 (stop 51, "The fault-free value by item").
+    real-actuators 10 -> 21, real-drift 21 -> 17 (stop 51, "The fault-free value by item"). The
+    inputs' by item, with a `MemoryRollback`, is the catalogue's since stop 52 ("The fault-free
+    value from before the onset": real-actuators 12 -> 1).
 
     item (nf, nf): 1 where two entries are on the same item (a measurement row or an input), the
-    diagonal included."""
+    diagonal included; an entry whose row is the identity's is kept by its own mode, as in
+    `DriftMemory` (parts.fault_free_memory = "input_item": the inputs by item, the rows by entry)."""
 
     def __init__(self, item: np.ndarray) -> None:
         super().__init__(item.shape[0])
@@ -144,8 +190,7 @@ class ItemDriftMemory(DriftMemory):
     def update(self, F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Take this step's item-fault-free means where those particles have > half the weight."""
         mean, share = mode0_mean(F, (self.item @ modes) > 0.0, w)
-        np.copyto(self.value, mean, where=share > 0.5)
-        return self.value
+        return self._take(mean, share > 0.5)
 
 
 class NoCarry:

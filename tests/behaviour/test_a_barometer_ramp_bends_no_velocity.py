@@ -26,7 +26,7 @@ from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
 from sim_bridge.type_yardstick import item_view, kind_of
 from sim_bridge.yardstick import Hysteresis, declared
-from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51
+from tests.helpers.declarations import TRACED_BEFORE_STOP_52
 
 RAMP_S, AFTER_S = (51.6, 65.2), (68.2, 90.0)
 
@@ -36,7 +36,7 @@ def barometer(altimeter_gain: str, attitude_before: bool = True
     """(baro declared during the ramp, its drift entry's P then, baro declared after it) per frame;
     attitude_before: the catalogue's attitude when the failure was traced (else today's)."""
     sc = load_scenario("real-drift")
-    pinned = ATTITUDE_BEFORE_STOP_51 if attitude_before else {}
+    pinned = TRACED_BEFORE_STOP_52 if attitude_before else {}
     parts = dataclasses.replace(sc.estimator.settings, altimeter_gain=altimeter_gain, moment_wind="entry",
                                 **pinned)
     est = dataclasses.replace(sc.estimator, settings=parts)

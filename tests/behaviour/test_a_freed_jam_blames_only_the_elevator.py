@@ -12,13 +12,13 @@ barometer stood at 27 s, 3 s after the jam's end: a false alarm."""
 
 from __future__ import annotations
 
-from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51, fly_with_parts
+from tests.helpers.declarations import TRACED_BEFORE_STOP_52, fly_with_parts
 
 
 def flight(exclusive: tuple[str, ...]) -> tuple[dict[str, float], float]:
     """({item: first declared (s)}, the largest altitude error (m)) with those exclusive items."""
     return fly_with_parts("real-actuators", 24, 32.0, exclusive_items=exclusive,
-                          **ATTITUDE_BEFORE_STOP_51)
+                          **TRACED_BEFORE_STOP_52)
 
 
 def test_with_the_pitch_chain_exclusive_only_the_elevator_is_declared():

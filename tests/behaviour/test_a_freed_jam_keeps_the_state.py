@@ -20,7 +20,7 @@ import pytest
 
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
-from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51, first_declarations
+from tests.helpers.declarations import TRACED_BEFORE_STOP_52, first_declarations
 
 
 def worst_errors(velocity_step: str) -> tuple[np.ndarray, float]:
@@ -32,7 +32,7 @@ def worst_errors(velocity_step: str) -> tuple[np.ndarray, float]:
     # "stall_blend", stop 47) the Euler step loses 3.2 m, not 6.4; the moment's wind and the
     # resumed hold of stop 48 make it another flight
     est = dataclasses.replace(est, settings=dataclasses.replace(est.settings, **{
-        **ATTITUDE_BEFORE_STOP_51, "velocity_step": velocity_step, "moment_alpha": "lift",
+        **TRACED_BEFORE_STOP_52, "velocity_step": velocity_step, "moment_alpha": "lift",
         "moment_wind": "entry", "hold_resume": "cloud"}))
     sc = dataclasses.replace(sc, estimator=est, navigation="truth", duration_s=112.0)
     tr = fly(sc, "RJMRPF", 25, 0)

@@ -11,13 +11,13 @@ real-drift run 2 (campaign seed 0), monitor loop, to 42 s: the attitude reading 
 
 from __future__ import annotations
 
-from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51, fly_with_parts
+from tests.helpers.declarations import TRACED_BEFORE_STOP_52, fly_with_parts
 
 
 def flight(exclusive: tuple[str, ...]) -> tuple[dict[str, float], float]:
     """({item: first declared (s)}, the largest altitude error (m)) with those exclusive items."""
     return fly_with_parts("real-drift", 2, 42.0, exclusive_items=exclusive,
-                          **ATTITUDE_BEFORE_STOP_51)
+                          **TRACED_BEFORE_STOP_52)
 
 
 def test_the_attitude_is_declared_and_the_altitude_holds():

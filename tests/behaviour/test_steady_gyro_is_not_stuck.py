@@ -16,7 +16,7 @@ import pytest
 
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
-from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51, first_declarations
+from tests.helpers.declarations import TRACED_BEFORE_STOP_52, first_declarations
 
 
 def declared_items(**parts: str) -> dict[str, float]:
@@ -25,7 +25,7 @@ def declared_items(**parts: str) -> dict[str, float]:
     sc = load_scenario("real-catalogue-faultfree")
     est = sc.estimator
     est = dataclasses.replace(est, settings=dataclasses.replace(est.settings,
-                                                                **{**ATTITUDE_BEFORE_STOP_51, **parts}))
+                                                                **{**TRACED_BEFORE_STOP_52, **parts}))
     sc = dataclasses.replace(sc, estimator=est, navigation="truth", duration_s=195.0)
     return first_declarations(est.faults, fly(sc, "RJMRPF", 21, 0))
 

@@ -13,6 +13,17 @@ noise 0.002 rad/sqrt(s) and the trapezoid everywhere (0.001 and "snap" since sto
 "The attitude's process noise"). Those tests keep it, so that each flight fails, or is mended, the
 way it was traced."""
 
+MEMORY_BEFORE_STOP_52 = {"fault_free_memory": "entry", "fault_free_rollback_s": 0.0}
+"""The catalogue's fault-free value before stop 52: every entry's from its own mode-0 particles, as
+it stands (since stop 52 an input's from the particles whose whole input is fault-free, frozen at
+its value from 2 s before the fault won; docs/faults.md, "The fault-free value from before the
+onset")."""
+
+TRACED_BEFORE_STOP_52 = {**ATTITUDE_BEFORE_STOP_51, **MEMORY_BEFORE_STOP_52}
+"""The catalogue as the flights its behaviour tests pin were traced: its attitude before stop 51 and
+its fault-free value before stop 52. Those tests keep it, so that each flight fails, or is mended,
+the way it was traced."""
+
 
 def first_declarations(faults, tr) -> dict[str, float]:
     """{item: first declared frame's time (s)} of a flight `tr` (its outputs' fault_probability)
@@ -40,3 +51,28 @@ def fly_with_parts(world: str, run: int, seconds: float, **parts) -> tuple[dict[
     tr = fly(dataclasses.replace(sc, estimator=est, duration_s=seconds), "RJMRPF", run, 0)
     altitude = np.array([o.x_mean[0] for o in tr.outputs])
     return first_declarations(sc.estimator.faults, tr), float(np.abs(altitude - tr.z[:, 0]).max())
+
+
+def declared_when_quiet(world: str, run: int, seconds: float, **parts) -> dict[str, float]:
+    """{item: seconds declared while no fault is active nor ended within the yardstick's grace} of
+    `world`'s run `run` (campaign seed 0, the monitor loop) flown to `seconds` with the estimator's
+    [parts] settings `parts`: the false alarms' time, by the service's rule."""
+    import dataclasses
+
+    from sim_bridge.campaign import fly
+    from sim_bridge.scenario import load_scenario
+    from sim_bridge.yardstick import quiet_mask
+
+    sc = load_scenario(world)
+    est = dataclasses.replace(sc.estimator, settings=dataclasses.replace(sc.estimator.settings, **parts))
+    tr = fly(dataclasses.replace(sc, estimator=est, duration_s=seconds), "RJMRPF", run, 0)
+    P = np.array([o.fault_probability for o in tr.outputs])
+    view = item_view(P, [kind_of(f) for f in sc.estimator.faults], [f.id for f in sc.estimator.faults])
+    quiet = quiet_mask(tr.t, tr.active.any(axis=1))
+    dt = float(tr.t[1] - tr.t[0])
+    out = {}
+    for i, item in enumerate(view.names):
+        frames = int(np.count_nonzero(declared(tr.t, view.prob[:, i], Hysteresis()) & quiet))
+        if frames:
+            out[item] = frames * dt
+    return out

@@ -411,4 +411,5 @@ def test_the_item_memory_keeps_the_wind_of_particles_with_no_pitot_fault():
     modes[BLK, 1] = True                              # 0.3 of the weight left with no pitot fault
     F[WIND, 0] = 5.0
     assert item.update(F, modes, w)[WIND] == pytest.approx(8.1)          # no majority: kept
-    assert load_estimator("aerosonde-catalogue").settings.fault_free_memory == "entry"
+    settings = load_estimator("aerosonde-catalogue").settings    # its pitot's: by entry, an input's by item
+    assert settings.fault_free_memory == "input_item" and settings.fault_free_rollback_s == 2.0

@@ -431,6 +431,43 @@ def test_drift_memory_keeps_the_fault_free_value_through_a_fault():
     assert mem.update(F, modes, w)[0] == pytest.approx(0.016)   # not taken: mode 0 is a minority
 
 
+def test_a_rolled_back_memory_freezes_at_its_value_from_before_the_onset():
+    from fdir_service.estimation.jump import DriftMemory, MemoryRollback
+
+    N = 100
+    w = np.full(N, 1.0 / N)
+    modes = np.zeros((2, N), bool)
+    plain, rolled = DriftMemory(2), DriftMemory(2)
+    rolled.rollback = MemoryRollback(2, steps=3)
+    for k in range(10):                                  # fault-free: both follow the mode-0 mean
+        F = np.full((2, N), 0.01 * k)
+        np.testing.assert_array_equal(plain.update(F, modes, w), rolled.update(F, modes, w))
+    for k in range(10, 12):                              # an onset the mode-0 particles absorb
+        F = np.full((2, N), 0.1 * k)
+        plain.update(F, modes, w), rolled.update(F, modes, w)
+    modes[0, :80] = True                                 # the first entry's fault wins: it freezes
+    F = np.full((2, N), 2.0)
+    assert plain.update(F, modes, w)[0] == pytest.approx(1.1)      # the absorbed onset
+    value = rolled.update(F, modes, w)
+    assert value[0] == pytest.approx(0.09)               # three frames before it froze
+    assert value[1] == pytest.approx(2.0)                # the second still follows its mean
+    for _ in range(5):                                   # frozen: it stays there
+        assert rolled.update(F, modes, w)[0] == pytest.approx(0.09)
+
+
+def test_fault_free_rollback_s_is_read_and_gives_the_memory_its_rollback(robust):
+    doc = _robust_doc()
+    doc["parts"]["fault_free_rollback_s"] = 2.0
+    est = parse_estimator(doc, "rollback.toml")
+    f = build_filter("RJMRPF", est, np.random.default_rng(0), particles=50)
+    assert f.parts.jump.drift.rollback.past.shape == (round(2.0 / est.dt_s), len(est.faults))
+    plain = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=50)
+    assert plain.parts.jump.drift.rollback is None
+    doc["parts"]["fault_free_rollback_s"] = -1.0
+    with pytest.raises(ConfigError, match="fault_free_rollback_s"):
+        parse_estimator(doc, "rollback.toml")
+
+
 def test_under_drift_an_exit_returns_to_the_fault_free_value_and_the_estimate_is_the_change(robust):
     f = build_filter("RJMRPF", robust, np.random.default_rng(0), particles=1000)
     jump = f.parts.jump
