@@ -312,10 +312,10 @@ def _kept_by_item(estimator: EstimatorConfig, layout: FaultLayout) -> np.ndarray
     every entry ("item"), the inputs' ("input_item"), the inputs' and the pitot's, whose mode-0
     entry is the wind ("wind_input_item")."""
     memory = estimator.settings.fault_free_memory
-    inputs = np.array([k != "sensor" or memory == "item" for k in layout.kinds], dtype=bool)
+    by_item = np.array([k != "sensor" or memory == "item" for k in layout.kinds], dtype=bool)
     if memory == "wind_input_item":
-        inputs |= np.array([t == "airspeed" for t in layout.targets], dtype=bool)
-    return inputs
+        by_item |= np.array([t == "airspeed" for t in layout.targets], dtype=bool)
+    return by_item
 
 
 def _memory_rollback(memory: DriftMemory | None, estimator: EstimatorConfig,
@@ -391,10 +391,10 @@ def _typed(parts: Parts, estimator: EstimatorConfig, layout: FaultLayout, meas: 
                                              else np.maximum(one_type, held.excludes))
     memory = estimator.settings.fault_free_memory
     if memory != "entry" and parts.jump.drift is not None:
-        inputs = _kept_by_item(estimator, layout)
+        by_item = _kept_by_item(estimator, layout)
         eye = np.eye(layout.nf, dtype=bool)
-        parts.jump.drift = ItemDriftMemory(np.where(inputs[:, None], same_item(layout), eye))
-        _memory_rollback(parts.jump.drift, estimator, inputs)
+        parts.jump.drift = ItemDriftMemory(np.where(by_item[:, None], same_item(layout), eye))
+        _memory_rollback(parts.jump.drift, estimator, by_item)
     parts.predict = TypedPredict(parts.predict, evolution, layout)
     noisy = evolution.noisy
     rows = np.maximum(layout.sensor_row, layout.noisy_row)

@@ -413,3 +413,22 @@ def test_the_item_memory_keeps_the_wind_of_particles_with_no_pitot_fault():
     assert item.update(F, modes, w)[WIND] == pytest.approx(8.1)          # no majority: kept
     settings = load_estimator("aerosonde-catalogue").settings    # its pitot's: by entry, an input's by item
     assert settings.fault_free_memory == "input_item" and settings.fault_free_rollback_s == 2.0
+
+
+def test_the_catalogues_memory_keeps_its_inputs_by_item_and_rolls_only_them_back():
+    """parts.fault_free_memory = "input_item" with fault_free_rollback_s = 2 (the catalogue's): an
+    input's entries (elevator, throttle: every type) share their item's fault-free particles and
+    roll back 2 s when they freeze; a sensor's entry is kept by its own mode, as "entry" keeps it."""
+    from fdir_service.estimation.jump import ItemDriftMemory
+
+    est = load_estimator("aerosonde-catalogue")
+    memory = build_filter("RJMRPF", est, np.random.default_rng(0), particles=20).parts.jump.drift
+    ids = [f.id for f in est.faults]
+    inputs = [j for j, f in enumerate(est.faults) if f.target in ("delta_e", "delta_t")]
+    assert isinstance(memory, ItemDriftMemory)
+    assert [ids[j] for j in np.flatnonzero(memory.rollback.entries)] == [ids[j] for j in inputs]
+    assert memory.rollback.past.shape[0] == round(2.0 / est.dt_s)
+    sensors = np.setdiff1d(np.arange(len(ids)), inputs)
+    np.testing.assert_array_equal(memory.item[np.ix_(sensors, sensors)], np.eye(sensors.size))
+    de = [j for j in inputs if est.faults[j].target == "delta_e"]
+    assert (memory.item[np.ix_(de, de)] == 1).all() and len(de) == 3
