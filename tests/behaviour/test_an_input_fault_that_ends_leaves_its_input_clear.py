@@ -14,10 +14,8 @@ real-engine run 44 (the engine lost 22.0-34.0 s), real-actuators run 1 (the elev
 
 from __future__ import annotations
 
+from tests.helpers.declarations import MEMORY_BEFORE_STOP_52 as BEFORE_STOP_52
 from tests.helpers.declarations import declared_when_quiet
-
-BEFORE_STOP_52 = {"fault_free_memory": "entry", "fault_free_rollback_s": 0.0}
-"""The catalogue's fault-free value before stop 52: every entry's from its own mode-0 particles."""
 
 
 def test_an_engine_that_comes_back_leaves_the_throttle_clear():

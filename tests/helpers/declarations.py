@@ -28,8 +28,7 @@ the way it was traced."""
 def first_declarations(faults, tr) -> dict[str, float]:
     """{item: first declared frame's time (s)} of a flight `tr` (its outputs' fault_probability)
     monitored with the estimator fault entries `faults` (`FaultSpec`s)."""
-    P = np.array([o.fault_probability for o in tr.outputs])
-    view = item_view(P, [kind_of(f) for f in faults], [f.id for f in faults])
+    view = _items(faults, tr)
     found = {}
     for i, item in enumerate(view.names):
         k = np.flatnonzero(declared(tr.t, view.prob[:, i], Hysteresis()))
@@ -38,9 +37,9 @@ def first_declarations(faults, tr) -> dict[str, float]:
     return found
 
 
-def fly_with_parts(world: str, run: int, seconds: float, **parts) -> tuple[dict[str, float], float]:
-    """({item: first declared (s)}, the largest altitude error (m)) of `world`'s run `run` (campaign
-    seed 0, the monitor loop) flown to `seconds` with the estimator's [parts] settings `parts`."""
+def _flown(world: str, run: int, seconds: float, **parts):
+    """(scenario, flight) of `world`'s run `run` (campaign seed 0, the monitor loop) flown to
+    `seconds` with the estimator's [parts] settings `parts`."""
     import dataclasses
 
     from sim_bridge.campaign import fly
@@ -48,26 +47,31 @@ def fly_with_parts(world: str, run: int, seconds: float, **parts) -> tuple[dict[
 
     sc = load_scenario(world)
     est = dataclasses.replace(sc.estimator, settings=dataclasses.replace(sc.estimator.settings, **parts))
-    tr = fly(dataclasses.replace(sc, estimator=est, duration_s=seconds), "RJMRPF", run, 0)
+    return sc, fly(dataclasses.replace(sc, estimator=est, duration_s=seconds), "RJMRPF", run, 0)
+
+
+def _items(faults, tr):
+    """The flight's `ItemView`: P(item) over its types per frame."""
+    P = np.array([o.fault_probability for o in tr.outputs])
+    return item_view(P, [kind_of(f) for f in faults], [f.id for f in faults])
+
+
+def fly_with_parts(world: str, run: int, seconds: float, **parts) -> tuple[dict[str, float], float]:
+    """({item: first declared (s)}, the largest altitude error (m)) of `world`'s run `run` (campaign
+    seed 0, the monitor loop) flown to `seconds` with the estimator's [parts] settings `parts`."""
+    sc, tr = _flown(world, run, seconds, **parts)
     altitude = np.array([o.x_mean[0] for o in tr.outputs])
     return first_declarations(sc.estimator.faults, tr), float(np.abs(altitude - tr.z[:, 0]).max())
 
 
 def declared_when_quiet(world: str, run: int, seconds: float, **parts) -> dict[str, float]:
     """{item: seconds declared while no fault is active nor ended within the yardstick's grace} of
-    `world`'s run `run` (campaign seed 0, the monitor loop) flown to `seconds` with the estimator's
-    [parts] settings `parts`: the false alarms' time, by the service's rule."""
-    import dataclasses
-
-    from sim_bridge.campaign import fly
-    from sim_bridge.scenario import load_scenario
+    `world`'s run `run` flown as `fly_with_parts` flies it: the false alarms' time, by the
+    service's rule."""
     from sim_bridge.yardstick import quiet_mask
 
-    sc = load_scenario(world)
-    est = dataclasses.replace(sc.estimator, settings=dataclasses.replace(sc.estimator.settings, **parts))
-    tr = fly(dataclasses.replace(sc, estimator=est, duration_s=seconds), "RJMRPF", run, 0)
-    P = np.array([o.fault_probability for o in tr.outputs])
-    view = item_view(P, [kind_of(f) for f in sc.estimator.faults], [f.id for f in sc.estimator.faults])
+    sc, tr = _flown(world, run, seconds, **parts)
+    view = _items(sc.estimator.faults, tr)
     quiet = quiet_mask(tr.t, tr.active.any(axis=1))
     dt = float(tr.t[1] - tr.t[0])
     out = {}
