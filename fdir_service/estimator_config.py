@@ -233,6 +233,8 @@ class FilterSettings:
     #                                      the inputs' and the pitot's (its wind) by item ("wind_input_item")
     fault_free_rollback_s: float = 0.0   # s: a fault-free value that freezes takes back its value of
     #                                      that long before (0: off; `jump.MemoryRollback`)
+    gyro_exit_unwind: float = 0.0        # 0..1: the share of the particles leaving a gyro fault that take
+    #                                      back the attitude it integrated (0: off; `gyro_unwind.GyroUnwind`)
     drift_window: str = "offset"         # a new drift rate's window: the offset against the cloud
     #                                      ("offset") | the altimeters' against the readings' climb ("climb")
     altitude_gain: str = "all_rows"      # "all_rows" | "altimeters" | "no_pitch_rate": which rows'
@@ -523,6 +525,7 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         sentinel_clip=f.take("sentinel_clip", "number", d.sentinel_clip, check=NON_NEGATIVE),
         fault_free_rollback_s=f.take("fault_free_rollback_s", "number", d.fault_free_rollback_s,
                                      check=NON_NEGATIVE),
+        gyro_exit_unwind=f.take("gyro_exit_unwind", "number", d.gyro_exit_unwind, check=UNIT_INTERVAL),
         q_tail=tuple(f.take("q_tail", "numbers", d.q_tail, check=ALL_NON_NEGATIVE)),
         q_noise_tau_s=f.take("q_noise_tau_s", "number", d.q_noise_tau_s, check=POSITIVE),
         wind_gust_sigma=f.take("wind_gust_sigma", "number", d.wind_gust_sigma, check=NON_NEGATIVE),

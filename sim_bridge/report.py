@@ -772,7 +772,7 @@ def yardstick_markdown(doc: dict) -> list[str]:
     for name, y in rows:
         bound = rate_upper_bound(y["false_alarms"], y["fault_free_hours"])
         L.append(f"| {name} | {_fmt(y['false_alarms_per_hour'], 2)} | {_fmt(bound, 2)} | "
-                 f"{y['false_alarms']} | {_fmt(y['fault_free_hours'], 2)} | "
+                 f"{y['false_alarms']}{_runs_with(y)} | {_fmt(y['fault_free_hours'], 2)} | "
                  f"{_fmt(y.get('falsely_declared_fraction'))} | {y['detected']} / {y['episodes']}"
                  f"{while_active(y)} | "
                  f"{_fmt(y['delay_s']['median'], 2)} | {_fmt(y['delay_s']['p90'], 2)} | "
@@ -784,6 +784,14 @@ def yardstick_markdown(doc: dict) -> list[str]:
         L += _confusion_markdown(f"Isolation, {name} (rows: injected; columns: first fault declared)",
                                  "injected", y["isolation"], "none")
     return L + by_type_markdown(rows)
+
+
+def _runs_with(y: dict) -> str:
+    """" (in k of R runs)" for a yardstick with false alarms and its run counts, else "": false
+    alarms cluster in runs (a state that departs raises several), so their count alone overstates
+    how many flights cried wolf, and a count's change of a few between two builds is within noise."""
+    k, runs = y.get("runs_with_false_alarms"), y.get("runs")
+    return f" (in {k} of {runs} runs)" if y.get("false_alarms") and k is not None and runs else ""
 
 
 FALSE_ALARMS_LISTED = 30

@@ -244,7 +244,9 @@ def delay_stats(delays: list[float]) -> dict:
 
 def pool(runs: list[dict], world_ids: list[str], run_ids: list[int] | None = None) -> dict:
     """The yardstick over runs (each `run_yardstick`'s output; run_ids: their run numbers, default
-    0, 1, ...) as results.json's `yardstick`; "false_alarm_list" names each false alarm's run."""
+    0, 1, ...) as results.json's `yardstick`; "false_alarm_list" names each false alarm's run, and
+    "runs_with_false_alarms" counts the runs that raised any (a run whose state departs raises
+    several: the count says how clustered they are)."""
     fa = sum(r["false_alarms"] for r in runs)
     hours = sum(r["fault_free_s"] for r in runs) / 3600.0
     false_h = sum(r.get("false_declared_s", 0.0) for r in runs) / 3600.0
@@ -259,6 +261,7 @@ def pool(runs: list[dict], world_ids: list[str], run_ids: list[int] | None = Non
     return {
         "false_alarms": fa, "fault_free_hours": hours,
         "false_alarms_per_hour": (fa / hours) if hours > 0 else None,
+        "runs": len(runs), "runs_with_false_alarms": sum(1 for r in runs if r["false_alarms"] > 0),
         "falsely_declared_fraction": (false_h / hours) if hours > 0 else None,
         "episodes": len(eps), "detected": len(delays),
         "detection_fraction": (len(delays) / len(eps)) if eps else None,

@@ -41,6 +41,7 @@ from fdir_service.estimation.fault_types import (
     sibling_pairs,
 )
 from fdir_service.estimation.gating import GatedKF, frozen_fault_scenario
+from fdir_service.estimation.gyro_unwind import GyroUnwind
 from fdir_service.estimation.held_mean import HeldCount, HeldMeanCorrection
 from fdir_service.estimation.imm import IMMKalman
 from fdir_service.estimation.inputs import RowSplit
@@ -480,9 +481,21 @@ def particle_parts(rec: Recipe, estimator: EstimatorConfig, layout: FaultLayout,
     )
     if rec.has_modes and est.exclusive_items:
         jump.exclusion = ItemExclusion(exclusion_matrix(layout, est.exclusive_items))
+    if rec.has_modes and est.gyro_exit_unwind > 0:
+        jump.unwind = _gyro_unwind(estimator, layout, N)
     if est.q_noise == "learned":
         parts.correction = _learned_noise(parts.correction, parts.predict, estimator, layout, meas, process)
     return (_typed(parts, estimator, layout, meas, N) if rec.has_modes else parts), amp
+
+
+def _gyro_unwind(estimator: EstimatorConfig, layout: FaultLayout, N: int) -> GyroUnwind:
+    """The `GyroUnwind` of parts.gyro_exit_unwind: the gyro's item is the entries on target "q"."""
+    entries = np.array([j for j, t in enumerate(layout.targets) if t == "q"], dtype=int)
+    rows = layout.sensor_row[entries] if entries.size else entries
+    if not (rows >= 0).any():
+        raise ValueError(f"estimator {estimator.id!r}: parts.gyro_exit_unwind needs a fault on the \"q\" row")
+    return GyroUnwind(entries, int(rows[rows >= 0][0]), estimator.dt_s,
+                      estimator.settings.gyro_exit_unwind, N)
 
 
 def _learned_noise(correction, predict, estimator: EstimatorConfig, layout: FaultLayout,

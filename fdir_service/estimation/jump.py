@@ -20,6 +20,7 @@ import numpy as np
 
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.base import StepOutput
+from fdir_service.estimation.gyro_unwind import NoUnwind
 from fdir_service.estimation.layout import N_AIRFRAME
 from fdir_service.estimation.measurement import state_gain
 
@@ -439,6 +440,8 @@ class MarkovJump:
         """None, or a `fault_types.TypeSwitch`: a fault handed to another type of its item."""
         self.exclusion = None
         """None, or the `fault_types.ItemExclusion`: one type per item, parts.exclusive_items."""
+        self.unwind = NoUnwind()
+        """`gyro_unwind.NoUnwind`, or the `GyroUnwind` of parts.gyro_exit_unwind > 0."""
         self.given_fault = False
         """True (typed estimators): `annotate` sets out.fault_value to each entry's mean over its
         mode-1 particles (what the fault is, if it is one), before `TypedPredict` words it per type."""
@@ -454,6 +457,7 @@ class MarkovJump:
         """Jump the modes and fault entries of X in place; returns the (N,) log-weight term of a
         proposal transition (None for the model's own matrix)."""
         innov = frame.yv[:, None] - frame.mm.H @ X
+        gyro_held = self.unwind.before(X, modes, frame)
         self.amplitude.observe(frame)
         A, avail = self.amplitude.predict(X, innov, frame.mask)
         F = X[N_AIRFRAME:]
@@ -472,6 +476,7 @@ class MarkovJump:
                               reset_to)
         self.carry.apply(X, F, carried)
         self.fold.apply(X, folded)
+        self.unwind.after(X, modes, gyro_held, rng)
         if self.switch is not None:
             self.switch.apply_anchor(X, anchored)
             self.switch.apply(F, modes, reset_to, rng)
@@ -489,10 +494,12 @@ class MarkovJump:
             X[N_AIRFRAME:] *= modes
 
     def resample_modes(self, modes: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        self.unwind.resample(idx)
         return np.take(modes, idx, axis=1)
 
     def reinitialise(self, modes: np.ndarray) -> None:
         """A fresh cloud: nothing held per particle (`drift_type.DriftJump` holds rates)."""
+        self.unwind.reinitialise()
 
     def fault_probability(self, X: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
         """P(mode 1) per fault (nf,) (Alg. 4.3); with `given_fault` on, also keeps each fault

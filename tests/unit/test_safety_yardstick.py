@@ -66,6 +66,23 @@ def test_one_false_alarm_in_ten_fault_free_minutes_is_six_per_hour():
     assert pooled["episodes"] == 0 and pooled["detection_fraction"] is None
 
 
+def test_the_report_says_in_how_many_runs_the_false_alarms_fell():
+    t = _t(600.0)
+    quiet = np.zeros((t.size, 1))
+    p_two, p_one = np.zeros((t.size, 1)), np.zeros((t.size, 1))
+    p_two[1000:1006, 0] = p_two[4000:4006, 0] = 0.95     # two declarations in one flight
+    p_one[2000:2006, 0] = 0.95
+    flights = (p_two, np.zeros((t.size, 1)), p_one)
+    runs = [run_yardstick(t, p, ["gnss"], quiet, ["gnss"], RULE) for p in flights]
+    pooled = pool(runs, ["gnss"])
+    assert (pooled["false_alarms"], pooled["runs_with_false_alarms"], pooled["runs"]) == (3, 2, 3)
+    pooled.update(p_declare=0.9)
+    lines = yardstick_markdown({"filters": {"RJMRPF": {"yardstick": pooled}}})
+    head = next(line for line in lines if line.startswith("| filter"))
+    row = next(line for line in lines if line.startswith("| RJMRPF"))
+    assert dict(zip(head.split(" | "), row.split(" | "), strict=True))["false alarms"] == "3 (in 2 of 3 runs)"
+
+
 def test_the_report_prints_the_false_alarm_rates_95_percent_upper_bound():
     # the exact Poisson bounds: 0 in 10 h -> 3.0 / 10 h, 2 in 30 h -> 6.30 / 30 h
     assert rate_upper_bound(0, 10.0) == pytest.approx(0.2996, abs=1e-4)
