@@ -19,6 +19,10 @@ window from onset to GRACE_S after the end (`sim_bridge.yardstick`):
 - **detected**: the item is declared in the window; **delay** from the onset to its first declared
   frame (0 if it stood declared already); **declared while active** (`during`): that frame comes
   before the episode's end (`sim_bridge.yardstick`);
+- **delay past 3 sigma**: the delay counted instead from the first frame at which the fault's
+  additive-equivalent size reaches 3 sigma of its sensor's noise in the world (`three_sigma_frame`;
+  0 if declared before): a ramp, a blockage or a stuck reading starts at 0 and needs seconds to
+  stand out, which the delay from the onset counts; actuators and noisy sensors from the onset;
 - **declared as**: the first item declared in the window (`yardstick.first_declared`: the fault's
   own item may stand declared already, any other must start its declaration inside the window),
   as (its item, its type then), else "missed";
@@ -80,11 +84,14 @@ class Kind(NamedTuple):
 
 
 class WorldFault(NamedTuple):
-    """An injected fault as this yardstick sees it: its kind, unit label and SI -> unit divisor."""
+    """An injected fault as this yardstick sees it: its kind, unit label and SI -> unit divisor,
+    and the additive-equivalent size (SI) at which it stands out of its sensor's noise (3 sigma of
+    the world's row; 0 for actuators and noisy sensors: from the onset)."""
 
     kind: Kind
     unit: str
     scale: float
+    three_sigma: float = 0.0
 
 
 def fault_type(fault: Any) -> str:
@@ -97,12 +104,24 @@ def kind_of(fault: Any) -> Kind:
     return Kind(fault.target, fault_type(fault))
 
 
-def world_fault(channel: Any) -> WorldFault:
-    """A FaultChannel's kind and the unit its magnitude error is reported in."""
+def world_fault(channel: Any, sigma: dict[str, float] | None = None) -> WorldFault:
+    """A FaultChannel's kind and the unit its magnitude error is reported in; with the world's
+    sensor noise sigma (row -> SI), its 3-sigma size on a sensor row."""
     ty = fault_type(channel)
     if ty in UNITLESS_TYPES:
         return WorldFault(Kind(channel.target, ty), "-", 1.0)
-    return WorldFault(Kind(channel.target, ty), channel.unit, channel.unit_scale)
+    three = 3.0 * (sigma or {}).get(channel.target, 0.0)
+    return WorldFault(Kind(channel.target, ty), channel.unit, channel.unit_scale, three)
+
+
+def three_sigma_frame(truth: np.ndarray, s: int, e: int, three_sigma: float) -> int | None:
+    """The first frame of the episode [s, e) at which the additive-equivalent truth (K,) SI reaches
+    three_sigma in size (s for 0: from the onset), None if it never does: where a ramp, a blockage
+    or a stuck reading, which start at 0, first stand out of the sensor's noise."""
+    if three_sigma <= 0.0:
+        return s
+    k = np.flatnonzero(np.abs(truth[s:e]) >= three_sigma)
+    return s + int(k[0]) if k.size else None
 
 
 def is_typed(channels: Sequence[Any]) -> bool:
@@ -269,11 +288,21 @@ def typed_run(t: np.ndarray, prob: np.ndarray, f_hat: np.ndarray, entries: Seque
     for w, fault in enumerate(faults):
         for s, e in episodes(active[:, w]):
             ep = typed_episode(t, dec, view, entries, fault, right[w], s, e, rule)
+            ep["delay_3sigma_s"] = _delay_past(t, ep["delay_s"], s, three_sigma_frame(truth[:, w], s, e,
+                                                                                       fault.three_sigma))
             j = ep.pop("entry")
             sq, n = magnitude_sq(f_hat[s:e, j], truth[s:e, w], active[s:e, w], fault.scale) \
                 if j is not None else (0.0, 0)
             out.append({**ep, "unit": fault.unit, "sq_err": sq, "n": n})
     return out
+
+
+def _delay_past(t: np.ndarray, delay_s: float | None, s: int, c: int | None) -> float | None:
+    """The detection delay (s) from frame c, where the fault reached 3 sigma, instead of the onset
+    s (0 if declared before; None if missed or it never did)."""
+    if delay_s is None or c is None:
+        return None
+    return max(0.0, delay_s - float(t[c] - t[s]))
 
 
 def _fraction(eps: list[dict], key: str) -> float | None:
@@ -296,8 +325,10 @@ def type_row(eps: list[dict]) -> dict:
     """The pooled figures of one fault type's episodes."""
     delays = [ep["delay_s"] for ep in eps if ep["delay_s"] is not None]
     named = [ep["named_s"] for ep in eps if ep["named_s"] is not None]
+    past = [ep["delay_3sigma_s"] for ep in eps if ep.get("delay_3sigma_s") is not None]
     return {"episodes": len(eps), "detected": len(delays),
             "detection_fraction": _fraction(eps, "detected"), "delay_s": delay_stats(delays),
+            "delay_3sigma_s": delay_stats(past),
             "detected_during": declared_during(eps),
             "right_fraction": _fraction(eps, "right"), "right_item_fraction": _fraction(eps, "right_item"),
             "right_probable_fraction": _fraction(eps, "right_probable"),
@@ -351,7 +382,8 @@ def scenario_yardsticks(scenario: Any, t: np.ndarray, prob: np.ndarray, f_hat: n
     entries = [kind_of(f) for f in scenario.estimator.faults]
     names = [f.id for f in scenario.estimator.faults]
     active = run_activity(scenario, sim_seeds, t)
-    faults = [world_fault(c) for c in scenario.faults]
+    sigma = getattr(getattr(scenario, "sensors", None), "sigma", None)     # the world's sensor noise
+    faults = [world_fault(c, sigma) for c in scenario.faults]
     view = item_view(prob, entries, names)
     right = [[i for i, tg in enumerate(view.targets) if tg == f.kind.target] for f in faults]
     strict = {"prob": view.prob, "fault_ids": view.names, "right": right, "world_active": active}

@@ -75,6 +75,32 @@ def test_a_declaration_after_the_end_is_detected_but_not_while_active():
     assert row["detected"] == 1 and row["detected_during"] == 0
 
 
+def test_a_ramp_is_timed_from_the_onset_and_from_where_it_stood_3_sigma_out():
+    ramp = np.where(_between(10.0, 20.0), 0.5 * (T - 10.0), 0.0)[:, None]      # 0.5 m/s from 10 s
+    drift = WorldFault(Kind("baro_alt", "drift"), "m", 1.0, three_sigma=3.0)   # 3 sigma at 16 s
+    ep = _one(drift, {0: 16.5}, truth=ramp)
+    assert ep["delay_s"] == pytest.approx(6.7, abs=1e-9)                         # 6.5 s + 0.2 s hold
+    assert ep["delay_3sigma_s"] == pytest.approx(0.7, abs=0.06)
+    assert _one(drift, {0: 12.0}, truth=ramp)["delay_3sigma_s"] == 0.0          # declared before
+    assert _one(drift._replace(three_sigma=9.0), {0: 12.0}, truth=ramp)["delay_3sigma_s"] is None
+    assert _one(drift._replace(three_sigma=0.0), {0: 12.0}, truth=ramp)["delay_3sigma_s"] == \
+        pytest.approx(2.2, abs=1e-9)                                              # 0: from the onset
+    row = pool_by_type([ep])["types"]["drift"]
+    assert row["delay_3sigma_s"]["median"] == pytest.approx(0.7, abs=0.06)
+    line = next(ln for ln in by_type_markdown([("RJMRPF", {"false_alarms_per_hour": 0.0,
+                                                            "by_type": pool_by_type([ep])})])
+                if ln.startswith("| RJMRPF"))
+    assert "| 6.70 (missed) | 6.70 | 0.70 |" in line
+
+
+def test_a_sensor_fault_stands_out_at_3_sigma_of_the_worlds_row():
+    ch = SimpleNamespace(target="baro_alt", fault_type="drift", unit="m", unit_scale=1.0)
+    assert world_fault(ch, {"baro_alt": 1.0, "theta": 0.01}).three_sigma == 3.0
+    assert world_fault(ch).three_sigma == 0.0
+    jam = SimpleNamespace(target="delta_e", fault_type="jammed", unit="deg", unit_scale=0.0174533)
+    assert world_fault(jam, {"baro_alt": 1.0}).three_sigma == 0.0
+
+
 def test_another_item_declared_is_not_detected_and_the_wrong_item():
     ep = _one(BARO_STUCK, {3: 11.0})
     assert not ep["detected"] and ep["delay_s"] is None
