@@ -8,7 +8,7 @@ import sys
 
 from fdir_service import cliutil
 
-COMMANDS = ("linearize", "simulate", "fly", "replay", "experiment", "bench")
+COMMANDS = ("linearize", "simulate", "fly", "replay", "experiment", "compare", "bench")
 DESCRIPTION = (
     "The Aerosonde simulator: trim and linearise the airframe, fly closed-loop scenarios with "
     "sensor and actuator faults, stream them over MAVLink like an autopilot, and run the thesis's "
