@@ -6,7 +6,8 @@ ended every exit mispredicted by it: the input stood declared for tens of second
 parts.fault_free_memory = "input_item" an input's fault-free value is kept from the particles
 whose whole input is fault-free, and with fault_free_rollback_s = 2 it freezes at its value from
 2 s before the fault's hypothesis won (`jump.MemoryRollback`; the catalogue's default since stop
-52; docs/faults.md, "The fault-free value from before the onset").
+52, with every entry kept by item since stop 53: both flights clear with either; docs/faults.md,
+"The fault-free value from before the onset", "Every entry by item").
 
 Campaign seed 0, the monitor loop, flown to a few seconds past the yardstick's grace:
 real-engine run 44 (the engine lost 22.0-34.0 s), real-actuators run 1 (the elevator bound

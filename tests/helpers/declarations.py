@@ -19,6 +19,10 @@ it stands (since stop 52 an input's from the particles whose whole input is faul
 its value from 2 s before the fault won; docs/faults.md, "The fault-free value from before the
 onset")."""
 
+MEMORY_AT_STOP_52 = {"fault_free_memory": "input_item", "fault_free_rollback_s": 2.0}
+"""The catalogue's fault-free value at stop 52: an input's by item, a sensor's by entry, frozen at
+its value from 2 s before the fault won (since stop 53 every entry's by item)."""
+
 TRACED_BEFORE_STOP_52 = {**ATTITUDE_BEFORE_STOP_51, **MEMORY_BEFORE_STOP_52}
 """The catalogue as the flights its behaviour tests pin were traced: its attitude before stop 51 and
 its fault-free value before stop 52. Those tests keep it, so that each flight fails, or is mended,

@@ -411,18 +411,35 @@ def test_the_item_memory_keeps_the_wind_of_particles_with_no_pitot_fault():
     modes[BLK, 1] = True                              # 0.3 of the weight left with no pitot fault
     F[WIND, 0] = 5.0
     assert item.update(F, modes, w)[WIND] == pytest.approx(8.1)          # no majority: kept
-    settings = load_estimator("aerosonde-catalogue").settings    # its pitot's: by entry, an input's by item
-    assert settings.fault_free_memory == "input_item" and settings.fault_free_rollback_s == 2.0
+    settings = load_estimator("aerosonde-catalogue").settings    # every entry's by item, since stop 53
+    assert settings.fault_free_memory == "item" and settings.fault_free_rollback_s == 2.0
 
 
-def test_the_catalogues_memory_keeps_its_inputs_by_item_and_rolls_only_them_back():
-    """parts.fault_free_memory = "input_item" with fault_free_rollback_s = 2 (the catalogue's): an
-    input's entries (elevator, throttle: every type) share their item's fault-free particles and
-    roll back 2 s when they freeze; a sensor's entry is kept by its own mode, as "entry" keeps it."""
-    from fdir_service.estimation.jump import ItemDriftMemory
+def _catalogue_memory(memory: str):
+    """(estimator, the fault-free memory of its RJMRPF) of the catalogue with that fault_free_memory."""
+    doc, _ = estimator_document("aerosonde-catalogue")
+    doc["parts"]["fault_free_memory"] = memory
+    est = parse_estimator(doc, "catalogue.toml")
+    return est, build_filter("RJMRPF", est, np.random.default_rng(0), particles=20).parts.jump.drift
 
+
+def test_the_catalogues_memory_keeps_every_entry_by_item_and_rolls_every_one_back():
+    """The catalogue's (since stop 53): every entry's fault-free value from the particles whose whole
+    item is fault-free, rolled back 2 s when it freezes."""
     est = load_estimator("aerosonde-catalogue")
     memory = build_filter("RJMRPF", est, np.random.default_rng(0), particles=20).parts.jump.drift
+    targets = [f.target for f in est.faults]
+    same = np.array([[a == b for b in targets] for a in targets], dtype=float)
+    assert isinstance(memory, ItemDriftMemory) and memory.rollback.entries.all()
+    np.testing.assert_array_equal(memory.item, same)
+
+
+def test_the_input_item_memory_keeps_its_inputs_by_item_and_rolls_only_them_back():
+    """parts.fault_free_memory = "input_item" with fault_free_rollback_s = 2 (the catalogue's at
+    stop 52): an input's entries (elevator, throttle: every type) share their item's fault-free
+    particles and roll back 2 s when they freeze; a sensor's entry is kept by its own mode, as
+    "entry" keeps it."""
+    est, memory = _catalogue_memory("input_item")
     ids = [f.id for f in est.faults]
     inputs = [j for j, f in enumerate(est.faults) if f.target in ("delta_e", "delta_t")]
     assert isinstance(memory, ItemDriftMemory)
