@@ -25,14 +25,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fdir_service.estimation.layout import N_AIRFRAME
-
 if TYPE_CHECKING:
     from fdir_service.estimation.frame import Frame
 
 THETA, Q = 3, 4
-"""Indices of the pitch angle (rad) and the pitch rate (rad/s) in the airframe state."""
-assert Q < N_AIRFRAME
+"""Indices of the pitch angle (rad) and the pitch rate (rad/s) in the airframe state (layout.py)."""
 
 
 class NoUnwind:
