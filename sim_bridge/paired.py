@@ -42,6 +42,8 @@ def per_run(doc: dict, name: str) -> tuple[np.ndarray, np.ndarray]:
     fa = doc["filters"][name]["yardstick"]["false_alarm_list"]
     count, seconds = np.zeros(doc["runs"]), np.zeros(doc["runs"])
     for f in fa:
+        if not 0 <= f["run"] < doc["runs"]:
+            raise ValueError(f"false alarm in run {f['run']} of a campaign of {doc['runs']} runs")
         count[f["run"]] += 1
         seconds[f["run"]] += f["s"]
     return count, seconds

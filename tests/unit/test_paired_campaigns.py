@@ -37,6 +37,8 @@ def test_false_alarms_gone_from_every_flight_that_had_one_are_a_change():
 def test_campaigns_of_other_flights_are_not_paired():
     with pytest.raises(NotPairedError, match="seed"):
         compare(_doc({}), _doc({}, seed=1), "RJMRPF")
+    with pytest.raises(ValueError, match="run 25 of a campaign of 20 runs"):
+        compare(_doc({25: 1}), _doc({}), "RJMRPF")
 
 
 def test_the_command_prints_each_filter_and_names_what_is_missing(tmp_path, capsys):
