@@ -115,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         pipeline = Pipeline(config, filter_name=args.filter, particles=args.particles, seed=args.seed,
                             observers=observers)
+        warm_kernels(pipeline)
         master = args.master or config.master
         gcs = tuple(args.gcs) if args.gcs is not None else config.gcs
         daemon = Daemon(pipeline, master, gcs)
@@ -125,6 +126,16 @@ def run(args: argparse.Namespace) -> int:
             names = ", ".join(str(p) for p in recorder.paths)
             print(f"fdir: recorded {names}", file=sys.stderr, flush=True)
     return status
+
+
+def warm_kernels(pipeline) -> None:
+    """Compile (or load) the filter's numba kernels on a throwaway copy before the first frame
+    (`estimation.warm_up`)."""
+    from fdir_service.estimation.warm_up import warm_up
+
+    seconds = warm_up(pipeline.filter_name, pipeline.estimator)
+    print(f"fdir: {pipeline.filter_name} ready ({seconds:.1f} s to compile or load its kernels)",
+          file=sys.stderr, flush=True)
 
 
 def recording_path(config, record: Path | None, no_record: bool) -> Path | None:

@@ -46,6 +46,8 @@ class AmplitudePredictor:
         self.B_actuator = np.asarray(B_actuator, dtype=float)
         self.Qz = np.diag(np.asarray(q_airframe, dtype=float) ** 2)
         self._cache: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._noisy_rows = [(j, r) for j, r in enumerate(layout.noisy_row.tolist()) if r >= 0]
+        """(fault, measurement row) of each noisy-sensor fault."""
         full = np.ones(meas.m, dtype=bool)
         _, _, self.sigma = self.gain(full)
 
@@ -124,10 +126,10 @@ class AmplitudePredictor:
         """A noisy fault's amplitude (in place): k - 1 from one innovation, |e| sqrt(pi / 2) / sigma_r
         - 1 (unbiased for Gaussian noise of k sigma_r); what the adaptive transition's variance test
         takes as its H1 (a new noisy fault's entry is drawn from its prior, `NoisySentinels`)."""
-        rows = self.layout.noisy_row
-        if not (rows >= 0).any():
+        rows = self._noisy_rows
+        if not rows:
             return
         reduced = np.cumsum(mask) - 1
-        for j, r in enumerate(rows.tolist()):
-            if r >= 0 and mask[r]:
+        for j, r in rows:
+            if mask[r]:
                 A[j] = np.abs(innovation[reduced[r]]) * (np.sqrt(np.pi / 2.0) / self.meas.sigma[r]) - 1.0

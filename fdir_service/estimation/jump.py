@@ -21,6 +21,14 @@ import numpy as np
 from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.gyro_unwind import NoUnwind
+from fdir_service.estimation.kernels import (
+    arm_folds,
+    exit_folds,
+    faint_exit_pi10,
+    jump_entries,
+    mode0_weights,
+    share_means,
+)
 from fdir_service.estimation.layout import N_AIRFRAME
 from fdir_service.estimation.measurement import state_gain
 
@@ -82,31 +90,19 @@ def jump(F: np.ndarray, modes: np.ndarray, amplitude: np.ndarray, available: np.
     exit's fault entry becomes when not forced_zero (None: 0).
     Returns the sentinels (nf, N) bool: the particles that jumped 0 -> 1 this step.
     """
-    up = v < pi01[:, None]
-    up &= ~modes
-    up &= available[:, None] if available.ndim == 1 else available
-    down = v < (pi10[:, None] if pi10.ndim == 1 else pi10)
-    down &= modes
-    np.copyto(F, amplitude, where=up)
-    modes |= up
-    modes &= ~down
-    if forced_zero:
-        F *= modes
-    elif reset_to is None:
-        F[down] = 0.0
-    else:
-        np.copyto(F, reset_to[:, None], where=down)
-    return up
+    may = available[:, None] if available.ndim == 1 else available
+    exits = pi10[:, None] if pi10.ndim == 1 else pi10
+    reset = np.zeros(modes.shape[0]) if reset_to is None else reset_to
+    return jump_entries(F, modes, amplitude, may, pi01, exits, v, bool(forced_zero), reset)
 
 
 def mode0_mean(F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """((nf,) weighted mean of each fault entry over the particles in its mode 0 (0 where none is),
     (nf,) their share of the weight): the sensor's fault-free error as the cloud knows it
     (parts.mode0 = "drift"). F, modes (nf, N), w (N,) weights."""
-    w0 = ~modes * w                              # np.where(modes, 0.0, w) bit for bit (w >= 0)
+    w0 = mode0_weights(modes, w)
     total = w0.sum(axis=1)
-    s = np.einsum("jn,jn->j", w0, F)
-    return np.divide(s, total, out=np.zeros_like(s), where=total > 1e-12), total / w.sum()
+    return share_means(np.einsum("jn,jn->j", w0, F), total, float(w.sum()))
 
 
 class DriftMemory:
@@ -220,7 +216,7 @@ class ActuatorCarry:
 
     def capture(self, F: np.ndarray) -> np.ndarray:
         """The actuator fault entries (k, N) before the jump."""
-        return F[self.columns].copy()
+        return F[self.columns]                    # an index array: a copy already
 
     def apply(self, X: np.ndarray, F: np.ndarray, before: np.ndarray) -> None:
         """X[:5] += B (F_act - before), in place."""
@@ -243,9 +239,9 @@ class ExitFold:
     def __init__(self, G: np.ndarray, arming: FoldArming | None = None) -> None:
         self.G = np.asarray(G, dtype=float)
         self.columns = np.flatnonzero(np.abs(self.G).sum(axis=0) > 0)
-        c = self.columns
-        self._rows = slice(int(c[0]), int(c[-1]) + 1) if c.size and np.all(np.diff(c) == 1) else c
-        """The folding faults' rows as a slice when they are consecutive (views, not copies)."""
+        self._G = self.G[:, self.columns]
+        self._every = np.ones(self.G.shape[1], dtype=bool)
+        self._zero = np.zeros(self.G.shape[1])
         self.arming = arming
         """None (every folding fault may fold), or the `FoldArming` of faults.fold_after."""
 
@@ -265,22 +261,15 @@ class ExitFold:
         exit leaves in the fault entry (None: 0), so the fold moves the state by the rest. The fault
         values (k, N) of the folding faults' particles that will fold (0 elsewhere),
         or None when none folds this step."""
-        c = self._rows
-        fold = v[c] < 0.5 * pi10[c]
-        fold &= modes[c]
-        if not fold.any():
-            return None
-        if self.arming is not None:
-            fold &= self.arming.armed[c, None]
-            if not fold.any():
-                return None
-        gone = F[c] if reset_to is None else F[c] - reset_to[c, None]
-        return np.where(fold, gone, 0.0)
+        armed = self._every if self.arming is None else self.arming.armed
+        values, anyone = exit_folds(F, modes, v, pi10, self.columns, armed,
+                                    self._zero if reset_to is None else reset_to)
+        return values if anyone else None
 
     def apply(self, X: np.ndarray, values: np.ndarray | None) -> None:
         """X[:5] += G values, in place (after the jump zeroed the exited entries)."""
         if values is not None:
-            X[:N_AIRFRAME] += self.G[:, self.columns] @ values
+            X[:N_AIRFRAME] += self._G @ values
 
 
 _FAR = np.iinfo(np.int64).max // 4
@@ -319,16 +308,17 @@ class FoldArming:
         """Steps since each gated fault's own item last rose past P = 0.5 (far while below)."""
         self.armed = np.ones(nf, dtype=bool)
         """(nf,) bool: the faults that may fold this step."""
+        if max((a.size for a in self.arming + self.own), default=0) >= 8:
+            raise ValueError("fold_after: at most 7 entries per row or item")   # numpy's in-order sum
+        self._flat = tuple(x for lists in (self.arming, self.own)
+                           for x in (np.concatenate(lists + [np.zeros(0, dtype=int)]),
+                                     np.cumsum([a.size for a in lists], dtype=np.int64)))
+        """(arming entries, their ends per gated fault, own entries, their ends) for `kernels.arm_folds`."""
 
     def observe(self, modes: np.ndarray, w: np.ndarray) -> None:
         """Update `armed` from the modes (nf, N) and prior weights (N,) of this step."""
-        p = modes @ w
-        for i, (arming, own) in enumerate(zip(self.arming, self.own, strict=True)):
-            self.since_arming[i] = 0 if p[arming].sum() >= 0.5 else self.since_arming[i] + 1
-            blamed = p[own].sum() >= 0.5
-            self.blamed_for[i] = (0 if self.blamed_for[i] >= _FAR else self.blamed_for[i] + 1) \
-                if blamed else _FAR
-        self.armed[self.gated] = (self.since_arming <= self.window) | (self.blamed_for <= self.young)
+        arm_folds(modes @ w, *self._flat, self.since_arming, self.blamed_for, self.window,
+                  self.young, self.gated, self.armed, _FAR)
 
 
 class NoFold:
@@ -365,12 +355,14 @@ class FaintExit:
     def __init__(self, threshold: np.ndarray, rate: float) -> None:
         self.threshold = np.asarray(threshold, dtype=float)[:, None]
         self.rate = float(rate)
+        self._threshold = self.threshold[:, 0].copy()
+        self._zero = np.zeros(self._threshold.size)
 
     def pi10(self, F: np.ndarray, pi10: np.ndarray, center: np.ndarray | None = None) -> np.ndarray:
         """(nf, N) exit probabilities of this step for fault entries F (nf, N), faint when within
         threshold of center (nf,): the fault-free value (None: 0; the drift under mode0 = "drift")."""
-        dev = F if center is None else F - center[:, None]
-        return np.where(np.abs(dev) < self.threshold, np.maximum(pi10, self.rate)[:, None], pi10[:, None])
+        return faint_exit_pi10(F, self._zero if center is None else center, self._threshold, pi10,
+                               self.rate)
 
 
 class JumpWrapper:

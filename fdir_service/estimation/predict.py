@@ -9,7 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from fdir_service.estimation.kernels import add_drift_noise
 from fdir_service.estimation.layout import N_AIRFRAME
+
+_NONE = np.zeros(0)
+"""An empty (0,) array: no tail draw, no stall share (`kernels.add_drift_noise`)."""
 
 
 class GaussianPredict:
@@ -71,15 +75,9 @@ class DriftPredict(GaussianPredict):
                 rng: np.random.Generator) -> np.ndarray:
         X = self.process.propagate(X, u, modes)
         noise = rng.standard_normal(X.shape)
-        noise[:N_AIRFRAME] *= self.q_std[:N_AIRFRAME]
-        noise[N_AIRFRAME:] *= np.where(modes, self.q_std[N_AIRFRAME:], self.drift_std)
-        if self.q_tail[0] > 0.0:
-            noise[4] *= np.where(rng.random(X.shape[1]) < self.q_tail[0], self.q_tail[1], 1.0)
+        share, scale = self.q_tail
+        tail = rng.random(X.shape[1]) if share > 0.0 else _NONE
         stalled = getattr(self.process, "stall_share", None)
-        if stalled is not None:                # past the stall the moment is no model: the tail's noise
-            noise[4] *= 1.0 + (self.q_tail[1] - 1.0) * stalled
-        X += noise
-        F = X[N_AIRFRAME:]
-        np.minimum(F, self.bound, out=F)
-        np.maximum(F, -self.bound, out=F)
+        add_drift_noise(X, noise, modes, self.q_std, self.drift_std, tail, share, scale,
+                        _NONE if stalled is None else stalled, self.bound)
         return X

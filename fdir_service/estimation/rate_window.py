@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fdir_service.estimation.amplitude import AmplitudePredictor
+from fdir_service.estimation.kernels import window_centred
 
 if TYPE_CHECKING:
     from fdir_service.estimation.frame import Frame
@@ -49,12 +50,17 @@ class RateWindow:
         """mean(q) - LS slope of theta over the window (rad/s); None with too few samples."""
         if self.count < self.min_frames:
             return None
+        if self.count > 128:
+            return self._numpy_bias()
+        tc, thc, q_mean = window_centred(self.buffer, self.count)
+        return q_mean - float(tc @ thc / (tc @ tc))
+
+    def _numpy_bias(self) -> float:
+        """`bias` for windows past 128 frames (numpy's sums halve there; `kernels.window_centred`)."""
         n = self.count
         t, th, q = self.buffer[:n].T
-        total = np.add.reduce                     # total(x) / n is x.mean() bit for bit, without its overhead
-        tc = t - total(t) / n
-        slope = float(tc @ (th - total(th) / n) / (tc @ tc))
-        return float(total(q) / n) - slope
+        tc = t - t.sum() / n
+        return float(q.sum() / n) - float(tc @ (th - th.sum() / n) / (tc @ tc))
 
 
 class RateWindowAmplitude(AmplitudePredictor):
@@ -70,15 +76,24 @@ class RateWindowAmplitude(AmplitudePredictor):
         self.theta_row, self.q_row = int(theta_row), int(q_row)
         self.window = RateWindow(window_frames, max(3, window_frames // 2))
         self._bias: float | None = None
+        self._rows: dict[bytes, tuple[int, int]] = {}
 
     def observe(self, frame: Frame) -> None:
         """Add the frame's (theta, q) pair when both rows arrived; update the window's bias."""
         m = frame.mask
         if m[self.theta_row] and m[self.q_row]:
-            k_theta = int(np.count_nonzero(m[:self.theta_row]))    # its index in frame.yv
-            k_q = int(np.count_nonzero(m[:self.q_row]))
+            k_theta, k_q = self._indices(m)
             self.window.add(frame.t, float(frame.yv[k_theta]), float(frame.yv[k_q]))
             self._bias = self.window.bias()
+
+    def _indices(self, mask: np.ndarray) -> tuple[int, int]:
+        """The attitude's and the gyro's indices in a frame's yv (its arrived rows), per mask."""
+        key = mask.tobytes()
+        hit = self._rows.get(key)
+        if hit is None:
+            hit = self._rows[key] = (int(np.count_nonzero(mask[:self.theta_row])),
+                                     int(np.count_nonzero(mask[:self.q_row])))
+        return hit
 
     def predict(self, X: np.ndarray, innovation: np.ndarray, mask: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fdir_service.estimation.amplitude import AmplitudePredictor
+from fdir_service.estimation.kernels import sentinel_pairs, spread_sentinels
 from fdir_service.estimation.layout import N_AIRFRAME
 
 if TYPE_CHECKING:
@@ -70,6 +71,11 @@ class PriorSentinels:
         self.amplitude = amplitude
         self.carry_index: dict[int, int] = getattr(carry, "index", {})
         self.carry_B = getattr(carry, "B", None)
+        self._carry_B = np.zeros((N_AIRFRAME, 0)) if self.carry_B is None else np.asarray(self.carry_B, float)
+        self._carry_of = np.full(self.log_c.size, -1, dtype=np.intp)
+        """(nf,) each fault's column of carry_B, -1 where its sentinel carries no state."""
+        for j, c in self.carry_index.items():
+            self._carry_of[j] = c
         self._rows: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
         self.clip = float(clip)
         """eps bound in sigmas (parts.sentinel_clip); 0: no bound."""
@@ -109,19 +115,9 @@ class PriorSentinels:
         js, consts = self.rows(frame.mask)
         if js.size == 0:
             return None
-        rows, cols = np.nonzero(sentinels[js])       # fault-major: the draws in turn per fault
+        rows, cols = sentinel_pairs(sentinels, js)   # fault-major: the draws in turn per fault
         if cols.size == 0:
             return np.zeros(X.shape[1])
         eps = rng.standard_normal(cols.size)
-        if self.clip > 0.0:                          # np.clip's bits, without its call overhead
-            np.maximum(eps, -self.clip, out=eps)
-            np.minimum(eps, self.clip, out=eps)
-        step = consts[rows, 0] * eps
-        X[N_AIRFRAME + js[rows], cols] += step
-        for k, j in enumerate(js.tolist()):
-            c = self.carry_index.get(j)
-            if c is not None:          # an actuator sentinel's state carries its fault's frame
-                mine = rows == k
-                X[:N_AIRFRAME, cols[mine]] += self.carry_B[:, c:c + 1] * step[mine]
-        bonus = np.bincount(cols, consts[rows, 1] + 0.5 * eps * eps, minlength=X.shape[1])
-        return bonus
+        return spread_sentinels(X, N_AIRFRAME, js, consts, self._carry_of[js], self._carry_B,
+                                rows, cols, eps, self.clip)
