@@ -136,6 +136,8 @@ def _run(args: argparse.Namespace) -> int:
     filters = parse_filters(args.filters, "fdir bench")
     if filters is None:
         return 2
+    if args.parts:
+        return _run_parts(args, tuple(f for f in filters if f not in ("KF", "IMM-KF")))
     res = run_bench(estimator_source(args.estimator), filters, SIZES, args.steps, args.clock)
     if args.json:
         print(json.dumps({"cores": res["cores"], "filters": res["filters"]}))
@@ -143,6 +145,20 @@ def _run(args: argparse.Namespace) -> int:
     est = bench_estimator(args.estimator).id
     print_bench(res, f"fdir bench: median us per filter step ({res['cores']} cores; {args.clock} clock; "
                 f"estimator {est} on frames from its own model; filters interleaved)", RATIO_GOALS.get(est))
+    return 0
+
+
+def _run_parts(args: argparse.Namespace, filters: tuple[str, ...]) -> int:
+    """`fdir bench --parts`: `bench_parts.time_parts` of each particle filter at N = 1000."""
+    from fdir_service.commands.bench_parts import print_parts, time_parts
+
+    warmup = 50
+    setups = estimator_source(args.estimator)(filters, 1000, args.steps, warmup)
+    rows = {name: time_parts(f, frames, args.steps, warmup, args.clock)
+            for name, (f, frames) in setups.items()}
+    est = bench_estimator(args.estimator).id
+    print_parts(rows, f"fdir bench --parts: mean us per step at N = 1000 by slot ({args.clock} clock, "
+                f"{args.steps} steps after {warmup}; estimator {est} on frames from its own model)")
     return 0
 
 
@@ -154,6 +170,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                    help="wall time (default) or this thread's CPU time, steadier on a busy machine")
     p.add_argument("--filters", default="", help="comma-separated subset, e.g. RJMRPF,bootstrap")
+    p.add_argument("--parts", action="store_true",
+                   help="where each particle filter's step goes at N = 1000: predict, jump, sentinels, "
+                   "correction, resampling and the rest (mean us per step)")
     p.add_argument("--estimator", metavar="NAME|FILE", default=None,
                    help="estimator to benchmark (config/estimators/NAME.toml or a file; default: the "
                    "one `fdir run` uses, config/service/default.toml's)")
