@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fdir_service.estimation.inputs import G
+from fdir_service.estimation.kernels import any_related, hand_over
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import state_gain
 
@@ -291,11 +292,13 @@ class ItemExclusion:
 
     def __init__(self, excludes: np.ndarray) -> None:
         self.excludes = np.asarray(excludes, dtype=float)
+        if (self.excludes < 0.0).any():
+            raise ValueError("ItemExclusion: the exclusion matrix is 0 or 1")
 
     def open(self, may: np.ndarray, modes: np.ndarray) -> np.ndarray:
         """(nf, N) bool: may ((nf,) or (nf, N)) less the entries that an entry in mode 1 (modes
         (nf, N)) keeps out."""
-        blocked = (self.excludes @ modes) > 0.0
+        blocked = any_related(self.excludes, modes)            # (excludes @ modes) > 0
         return (may[:, None] if may.ndim == 1 else may) & ~blocked
 
 
@@ -378,14 +381,8 @@ class TypeSwitch:
         if not self.active:
             return
         v = rng.random((len(self.pairs), F.shape[1]))
-        for (a, b), vv, rate in zip(self.pairs.tolist(), v, self.rates.tolist(), strict=True):
-            go = modes[a] & ~modes[b] & (vv < rate)
-            if go.any():
-                back = 0.0 if reset_to is None else reset_to[a]
-                F[b, go] += F[a, go] - back        # the row's offset F[a] + F[b] is kept
-                F[a, go] = back
-                modes[a, go] = False
-                modes[b, go] = True
+        back = np.zeros(F.shape[0]) if reset_to is None else reset_to
+        hand_over(F, modes, v, self.pairs, self.rates, back)   # the row's offset F[a] + F[b] is kept
 
 
 class NoisySentinels:

@@ -22,6 +22,7 @@ from fdir_service.estimation.amplitude import AmplitudePredictor
 from fdir_service.estimation.base import StepOutput
 from fdir_service.estimation.gyro_unwind import NoUnwind
 from fdir_service.estimation.kernels import (
+    any_related,
     arm_folds,
     exit_folds,
     faint_exit_pi10,
@@ -186,7 +187,7 @@ class ItemDriftMemory(DriftMemory):
 
     def update(self, F: np.ndarray, modes: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Take this step's item-fault-free means where those particles have > half the weight."""
-        mean, share = mode0_mean(F, (self.item @ modes) > 0.0, w)
+        mean, share = mode0_mean(F, any_related(self.item, modes), w)    # (item @ modes) > 0
         return self._take(mean, share > 0.5)
 
 

@@ -342,3 +342,35 @@ def window_centred(buffer: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, 
     t_mean = _block_sum(t) / n
     th_mean = _block_sum(th) / n
     return t - t_mean, th - th_mean, _block_sum(buffer[:n, 2].copy()) / n
+
+
+@njit(cache=True, nogil=True)
+def any_related(M: np.ndarray, modes: np.ndarray) -> np.ndarray:
+    """(nf, N) bool: (M @ modes) > 0 for a nonnegative (nf, nf) M and modes (nf, N) bool, i.e.
+    entry b of particle i has some a with M[b, a] > 0 in mode 1 (the same bools whatever the
+    order of the sum: every term is >= 0)."""
+    nf, n = modes.shape
+    out = np.zeros((M.shape[0], n), dtype=np.bool_)
+    for b in range(M.shape[0]):
+        for a in range(nf):
+            if M[b, a] > 0.0:
+                for i in range(n):
+                    if modes[a, i]:
+                        out[b, i] = True
+    return out
+
+
+@njit(cache=True, nogil=True)
+def hand_over(F: np.ndarray, modes: np.ndarray, v: np.ndarray, pairs: np.ndarray,
+              rates: np.ndarray, back: np.ndarray) -> None:
+    """`fault_types.TypeSwitch.apply` in place, pair by pair in order: where entry a is in mode 1,
+    b is not and v[p, i] < rates[p], b takes a's offset (F[b] += F[a] - back[a]), a leaves
+    mode 1 at back[a], b enters it. F, modes (nf, N); v (p, N); pairs (p, 2); back (nf,)."""
+    for p in range(pairs.shape[0]):
+        a, b = pairs[p, 0], pairs[p, 1]
+        for i in range(F.shape[1]):
+            if modes[a, i] and not modes[b, i] and v[p, i] < rates[p]:
+                F[b, i] += F[a, i] - back[a]
+                F[a, i] = back[a]
+                modes[a, i] = False
+                modes[b, i] = True

@@ -215,3 +215,27 @@ def test_window_means_are_numpys_sums(rng, n):
     assert np.array_equal(tc, t - np.add.reduce(t) / n)
     assert np.array_equal(thc, th - np.add.reduce(th) / n)
     assert q_mean == np.add.reduce(q) / n
+
+
+def test_any_related_is_the_matrix_products_test(rng):
+    M = (rng.random((NF, NF)) < 0.3).astype(float)
+    _, modes, _ = _cloud(rng, 0.2)
+    assert np.array_equal(K.any_related(M, modes), (M @ modes) > 0.0)
+
+
+def test_hand_over_is_the_pairwise_loop(rng):
+    X, modes, _ = _cloud(rng, 0.4)
+    F = X[5:].copy()
+    pairs = np.array([[0, 1], [1, 0], [2, 3], [3, 2], [1, 4]])
+    rates = np.array([0.3, 0.2, 0.5, 0.1, 0.4])
+    v = rng.random((len(pairs), N))
+    back = rng.standard_normal(NF)
+    F2, modes2 = F.copy(), modes.copy()
+    for (a, b), vv, rate in zip(pairs.tolist(), v, rates.tolist(), strict=True):
+        go = modes[a] & ~modes[b] & (vv < rate)
+        F[b, go] += F[a, go] - back[a]
+        F[a, go] = back[a]
+        modes[a, go] = False
+        modes[b, go] = True
+    K.hand_over(F2, modes2, v, pairs, rates, back)
+    assert np.array_equal(F2, F) and np.array_equal(modes2, modes)
