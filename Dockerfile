@@ -10,8 +10,10 @@ COPY pyproject.toml README.md* ./
 COPY fdir_service ./fdir_service
 COPY sim_bridge ./sim_bridge
 COPY config ./config
-# the filter's numba kernels compiled once into the image (`fdir run` loads them in ~0.5 s); from
-# /tmp, so that the installed package is the one compiled, not the copy in /app
+# the filter's numba kernels compiled into the image (`fdir run` loads them in ~0.5 s on a CPU of
+# the build machine's model; numba keys its cache on the CPU, so elsewhere its start-up warm-up
+# compiles them again, 10-30 s, into the same writable folder); from /tmp, so that the installed
+# package is the one compiled, not the copy in /app
 RUN pip install --no-cache-dir . \
     && cd /tmp && python -c "from fdir_service.service_config import load_service_config as c; \
 from fdir_service.estimation.warm_up import warm_up; s = c(None); warm_up(s.filter, s.estimator)" \

@@ -62,10 +62,10 @@ def time_parts(f: Any, frames: Any, steps: int, warmup: int = 50, clock: str = "
     timer = _Timer(_clock(clock))
     owners = [(getattr(f.parts, attr), method, label) for label, attr, method in SLOTS]
     owners.append((f, "_resample", "resample"))
-    for owner, method, label in owners:
-        timer.wrap(owner, method, label)
     step_total = 0.0
     try:
+        for owner, method, label in owners:
+            timer.wrap(owner, method, label)
         for k in range(warmup + steps):
             timer.on = k >= warmup
             t0 = timer.tick()

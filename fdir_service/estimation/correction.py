@@ -128,7 +128,9 @@ def _spd_inverse(S: np.ndarray, R: np.ndarray, fallback: bool = True) -> np.ndar
     if floor > 0 and tr < 1e10 * floor:
         # S >= R, so cond(S) <= trace(S) / min R < 1e10: the plain inverse is accurate (and the
         # cheapest call); symmetrised against round-off
-        return symmetrised(_inv(S) if S.dtype == np.float64 else np.linalg.inv(S))
+        inv = _inv(S) if S.dtype == np.float64 else np.linalg.inv(S)
+        if all_finite(inv):       # else (S singular after all) the factorisations below
+            return symmetrised(inv)
     S = 0.5 * (S + S.T)
     L, info = dpotrf(S, lower=1, clean=1)
     if info == 0:

@@ -7,16 +7,28 @@ multiply and add element by element in the order numpy did (no sum is reassociat
 no fused multiply-add), so a step's bits are those of the numpy code it replaces; every sum over
 particles and every matrix product stays with numpy.
 
-Compiled on first use and cached beside this module (`cache=True`).
+Compiled on first use and cached beside this module, or in NUMBA_CACHE_DIR, or in the user's
+cache folder; where numba has nowhere to write (a read-only install and no home), compiled at every
+start instead of failing.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True)
+def _compiled(fn: Callable) -> Callable:
+    """numba's njit with its on-disk cache, or without it where numba finds no folder to write."""
+    try:
+        return njit(cache=True, nogil=True)(fn)
+    except RuntimeError:              # "cannot cache function ...: no locator available"
+        return njit(nogil=True)(fn)
+
+
+@_compiled
 def sentinel_pairs(sentinels: np.ndarray, js: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """np.nonzero(sentinels[js]): (rows (s,) into js, cols (s,) particles), fault-major, for the
     sentinels (nf, N) bool of the faults js (k,)."""
@@ -39,7 +51,7 @@ def sentinel_pairs(sentinels: np.ndarray, js: np.ndarray) -> tuple[np.ndarray, n
     return rows, cols
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def spread_sentinels(X: np.ndarray, first_fault: int, js: np.ndarray, consts: np.ndarray,
                      carry_col: np.ndarray, carry_B: np.ndarray, rows: np.ndarray,
                      cols: np.ndarray, eps: np.ndarray, clip: float) -> np.ndarray:
@@ -67,7 +79,7 @@ def spread_sentinels(X: np.ndarray, first_fault: int, js: np.ndarray, consts: np
     return bonus
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def faint_exit_pi10(F: np.ndarray, center: np.ndarray, threshold: np.ndarray, pi10: np.ndarray,
                     rate: float) -> np.ndarray:
     """(nf, N) exit probabilities: max(pi10[j], rate) where |F[j, i] - center[j]| < threshold[j],
@@ -80,7 +92,7 @@ def faint_exit_pi10(F: np.ndarray, center: np.ndarray, threshold: np.ndarray, pi
     return out
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def exit_folds(F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray,
                rows: np.ndarray, armed: np.ndarray, reset_to: np.ndarray) -> tuple[np.ndarray, bool]:
     """((k, N) the fault values F[rows] - reset_to[rows] of the mode-1 particles that fold (v <
@@ -100,7 +112,7 @@ def exit_folds(F: np.ndarray, modes: np.ndarray, v: np.ndarray, pi10: np.ndarray
     return out, anyone
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def jump_entries(F: np.ndarray, modes: np.ndarray, amplitude: np.ndarray, may: np.ndarray,
                  pi01: np.ndarray, pi10: np.ndarray, v: np.ndarray, forced_zero: bool,
                  reset_to: np.ndarray) -> np.ndarray:
@@ -125,7 +137,7 @@ def jump_entries(F: np.ndarray, modes: np.ndarray, amplitude: np.ndarray, may: n
     return up
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def mode_patterns(modes: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(groups (g,) the mode patterns present, ascending, as codes with bit j = fault j; inv (N,)
     each particle's index into groups; share (g, N): w where the particle has that pattern, else 0)
@@ -143,7 +155,7 @@ def mode_patterns(modes: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndar
     return groups, inv, share
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def _distinct(code: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(np.unique(code), each element's index into it) for int64 codes (N,) of few distinct values
     (a linear scan; np.unique's sort past 32 of them)."""
@@ -171,7 +183,7 @@ def _distinct(code: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return seen[:g][order], slot
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def pattern_deviations(X: np.ndarray, means: np.ndarray, inv: np.ndarray,
                        w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(dX, dX w) (n, N): each particle of X (n, N) about its pattern's mean, means (g, n) and inv
@@ -186,7 +198,7 @@ def pattern_deviations(X: np.ndarray, means: np.ndarray, inv: np.ndarray,
     return dX, dXw
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def add_drift_noise(X: np.ndarray, noise: np.ndarray, modes: np.ndarray, q_std: np.ndarray,
                     drift_std: np.ndarray, tail_draw: np.ndarray, tail_share: float,
                     tail_scale: float, stalled: np.ndarray, bound: np.ndarray) -> None:
@@ -214,7 +226,7 @@ def add_drift_noise(X: np.ndarray, noise: np.ndarray, modes: np.ndarray, q_std: 
             X[a, i] = x
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def _add_pitch_rate_noise(x: np.ndarray, noise: np.ndarray, q: float, tail_draw: np.ndarray,
                           tail_share: float, tail_scale: float, stalled: np.ndarray) -> None:
     """x (N,) += noise q times the heavy tail (tail_scale where tail_draw < tail_share; empty: none)
@@ -229,7 +241,7 @@ def _add_pitch_rate_noise(x: np.ndarray, noise: np.ndarray, q: float, tail_draw:
         x[i] += e
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def mode0_weights(modes: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(nf, N): the weights w (N,) where modes (nf, N) is False, 0 where True."""
     out = np.zeros(modes.shape)
@@ -240,7 +252,7 @@ def mode0_weights(modes: np.ndarray, w: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def share_means(s: np.ndarray, total: np.ndarray, w_total: float) -> tuple[np.ndarray, np.ndarray]:
     """((nf,) s / total where total > 1e-12, else 0; (nf,) total / w_total)."""
     mean = np.zeros(s.size)
@@ -252,7 +264,7 @@ def share_means(s: np.ndarray, total: np.ndarray, w_total: float) -> tuple[np.nd
     return mean, share
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def add_held(X: np.ndarray, dX: np.ndarray, modes: np.ndarray) -> None:
     """X (n, N) += dX in place, a fault entry's row only where its mode (nf, N) is 1 (the last nf
     rows: dX times the mode, as `correction.KalmanCorrection` with hold_mode0_faults)."""
@@ -265,7 +277,7 @@ def add_held(X: np.ndarray, dX: np.ndarray, modes: np.ndarray) -> None:
             X[a, i] = X[a, i] + d
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def all_finite(A: np.ndarray) -> bool:
     """np.isfinite(A).all() for a 2-D float array."""
     for i in range(A.shape[0]):
@@ -275,7 +287,7 @@ def all_finite(A: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def symmetrised(A: np.ndarray) -> np.ndarray:
     """(A + A^T) / 2 of a square A, as numpy's `A += A.T; A *= 0.5`."""
     out = np.empty(A.shape)
@@ -285,7 +297,7 @@ def symmetrised(A: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def arm_folds(p: np.ndarray, arming: np.ndarray, arming_end: np.ndarray, own: np.ndarray,
               own_end: np.ndarray, since_arming: np.ndarray, blamed_for: np.ndarray,
               window: np.ndarray, young: np.ndarray, gated: np.ndarray, armed: np.ndarray,
@@ -310,7 +322,7 @@ def arm_folds(p: np.ndarray, arming: np.ndarray, arming_end: np.ndarray, own: np
         start_a, start_o = arming_end[i], own_end[i]
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def _block_sum(a: np.ndarray) -> float:
     """numpy's add.reduce of a float64 a (n,), n <= 128, bit for bit: in order from 0 below 8
     terms, else 8 running sums (numpy's pairwise summation, whose halving starts past 128)."""
@@ -333,7 +345,7 @@ def _block_sum(a: np.ndarray) -> float:
     return 0.0 + res
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def window_centred(buffer: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, float]:
     """(t - mean t, theta - mean theta, mean q) over the first n <= 128 rows (t, theta, q) of a
     `rate_window.RateWindow` buffer (frames, 3); the means are numpy's x.sum() / n bit for bit."""
@@ -344,7 +356,7 @@ def window_centred(buffer: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, 
     return t - t_mean, th - th_mean, _block_sum(buffer[:n, 2].copy()) / n
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def any_related(M: np.ndarray, modes: np.ndarray) -> np.ndarray:
     """(nf, N) bool: (M @ modes) > 0 for a nonnegative (nf, nf) M and modes (nf, N) bool, i.e.
     entry b of particle i has some a with M[b, a] > 0 in mode 1 (the same bools whatever the
@@ -360,7 +372,7 @@ def any_related(M: np.ndarray, modes: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def hand_over(F: np.ndarray, modes: np.ndarray, v: np.ndarray, pairs: np.ndarray,
               rates: np.ndarray, back: np.ndarray) -> None:
     """`fault_types.TypeSwitch.apply` in place, pair by pair in order: where entry a is in mode 1,

@@ -239,3 +239,27 @@ def test_hand_over_is_the_pairwise_loop(rng):
         modes[b, go] = True
     K.hand_over(F2, modes2, v, pairs, rates, back)
     assert np.array_equal(F2, F) and np.array_equal(modes2, modes)
+
+
+def test_a_singular_innovation_covariance_still_gives_a_finite_inverse():
+    from fdir_service.estimation.correction import _spd_inverse
+
+    S = np.array([[1.0, 1.0], [1.0, 1.0]])            # singular, though its trace passes the test
+    R = np.diag([1e-3, 1e-3])
+    with np.errstate(invalid="ignore"):
+        inv = _spd_inverse(S, R)
+    assert inv is not None and np.isfinite(inv).all() and np.allclose(inv, inv.T)
+
+
+def test_without_a_folder_for_numbas_cache_the_kernels_compile_anyway(monkeypatch):
+    calls = []
+
+    def njit(**options):
+        calls.append(options)
+        if options.get("cache"):
+            raise RuntimeError("cannot cache function 'f': no locator available")
+        return lambda fn: fn
+
+    monkeypatch.setattr(K, "njit", njit)
+    assert K._compiled(abs)(-2) == 2
+    assert calls == [{"cache": True, "nogil": True}, {"nogil": True}]
