@@ -21,6 +21,7 @@ from scipy.linalg.lapack import dpotrf, dtrtri
 from fdir_service.estimation.kernels import (
     add_held,
     all_finite,
+    inverse_checks,
     mode_patterns,
     pattern_deviations,
     symmetrised,
@@ -109,6 +110,11 @@ def kalman_gain(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> tuple[np.ndarray
     return K, S_inv
 
 
+def _numpy_checks(S: np.ndarray, R: np.ndarray) -> tuple[bool, float, float]:
+    """`kernels.inverse_checks` for S past 128 rows."""
+    return bool(np.isfinite(S).all()), _diag_floor(R), float(S.trace())
+
+
 def _spd_inverse(S: np.ndarray, R: np.ndarray, fallback: bool = True) -> np.ndarray | None:
     """Inverse of a symmetric positive-definite S (m, m) that never raises.
 
@@ -121,10 +127,9 @@ def _spd_inverse(S: np.ndarray, R: np.ndarray, fallback: bool = True) -> np.ndar
     if not fallback:
         d = np.diag(R)
         return np.diag(1.0 / np.where(d > 0, d, 1.0))
-    if not all_finite(S):
+    finite, floor, tr = inverse_checks(S, R) if S.shape[0] <= 128 else _numpy_checks(S, R)
+    if not finite:
         return None
-    floor = _diag_floor(R)
-    tr = float(S.trace())
     if floor > 0 and tr < 1e10 * floor:
         # S >= R, so cond(S) <= trace(S) / min R < 1e10: the plain inverse is accurate (and the
         # cheapest call); symmetrised against round-off

@@ -346,14 +346,19 @@ def _block_sum(a: np.ndarray) -> float:
 
 
 @_compiled
-def window_centred(buffer: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """(t - mean t, theta - mean theta, mean q) over the first n <= 128 rows (t, theta, q) of a
-    `rate_window.RateWindow` buffer (frames, 3); the means are numpy's x.sum() / n bit for bit."""
-    t = buffer[:n, 0].copy()
-    th = buffer[:n, 1].copy()
-    t_mean = _block_sum(t) / n
-    th_mean = _block_sum(th) / n
-    return t - t_mean, th - th_mean, _block_sum(buffer[:n, 2].copy()) / n
+def window_centred(buffer: np.ndarray, start: int, n: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """(t - mean t, theta - mean theta, mean q) over n <= 128 rows (t, theta, q) of a
+    `rate_window.RateWindow` ring (frames, 3), oldest first from row `start`; the means are
+    numpy's x.sum() / n bit for bit."""
+    size = buffer.shape[0]
+    rows = np.empty((3, n))
+    for i in range(n):
+        r = (start + i) % size
+        for c in range(3):
+            rows[c, i] = buffer[r, c]
+    t_mean = _block_sum(rows[0]) / n
+    th_mean = _block_sum(rows[1]) / n
+    return rows[0] - t_mean, rows[1] - th_mean, _block_sum(rows[2]) / n
 
 
 @_compiled
@@ -386,3 +391,19 @@ def hand_over(F: np.ndarray, modes: np.ndarray, v: np.ndarray, pairs: np.ndarray
                 F[a, i] = back[a]
                 modes[a, i] = False
                 modes[b, i] = True
+
+
+@_compiled
+def inverse_checks(S: np.ndarray, R: np.ndarray) -> tuple[bool, float, float]:
+    """(S (m, m) all finite, min diag R (0 for an empty R), trace S as numpy's S.trace()) for
+    `correction._spd_inverse`: one call for three (m <= 128)."""
+    if not all_finite(S):
+        return False, 0.0, 0.0
+    floor = 0.0
+    for i in range(R.shape[0]):
+        d = R[i, i]
+        if i == 0 or d < floor or np.isnan(d):
+            floor = d
+            if np.isnan(d):
+                break
+    return True, floor, _block_sum(np.diag(S).copy())

@@ -31,20 +31,23 @@ if TYPE_CHECKING:
 
 
 class RateWindow:
-    """The last `frames` (theta, q) measurement pairs (rad, rad/s) and their frame times (s), oldest
-    first, in rows (t, theta, q) of a fixed (frames, 3) array."""
+    """The last `frames` (theta, q) measurement pairs (rad, rad/s) and their frame times (s), in rows
+    (t, theta, q) of a fixed (frames, 3) ring: the oldest at row `start`."""
 
     def __init__(self, frames: int, min_frames: int) -> None:
         self.buffer = np.empty((int(frames), 3))
         self.count = 0
+        self.start = 0
         self.min_frames = int(min_frames)
 
     def add(self, t: float, theta: float, q: float) -> None:
-        if self.count == self.buffer.shape[0]:
-            self.buffer[:-1] = self.buffer[1:]
+        size = self.buffer.shape[0]
+        if self.count == size:
+            self.buffer[self.start] = (t, theta, q)
+            self.start = (self.start + 1) % size
         else:
+            self.buffer[(self.start + self.count) % size] = (t, theta, q)
             self.count += 1
-        self.buffer[self.count - 1] = (t, theta, q)
 
     def bias(self) -> float | None:
         """mean(q) - LS slope of theta over the window (rad/s); None with too few samples."""
@@ -52,13 +55,13 @@ class RateWindow:
             return None
         if self.count > 128:
             return self._numpy_bias()
-        tc, thc, q_mean = window_centred(self.buffer, self.count)
+        tc, thc, q_mean = window_centred(self.buffer, self.start, self.count)
         return q_mean - float(tc @ thc / (tc @ tc))
 
     def _numpy_bias(self) -> float:
         """`bias` for windows past 128 frames (numpy's sums halve there; `kernels.window_centred`)."""
         n = self.count
-        t, th, q = self.buffer[:n].T
+        t, th, q = np.roll(self.buffer, -self.start, axis=0)[:n].T
         tc = t - t.sum() / n
         return float(q.sum() / n) - float(tc @ (th - th.sum() / n) / (tc @ tc))
 

@@ -211,7 +211,7 @@ def test_fold_arming_counts_as_the_python_loop(rng):
 def test_window_means_are_numpys_sums(rng, n):
     buffer = rng.standard_normal((130, 3)) * 10.0 ** rng.uniform(-4, 6, (130, 3))
     t, th, q = buffer[:n].T
-    tc, thc, q_mean = K.window_centred(buffer, n)
+    tc, thc, q_mean = K.window_centred(buffer, 0, n)
     assert np.array_equal(tc, t - np.add.reduce(t) / n)
     assert np.array_equal(thc, th - np.add.reduce(th) / n)
     assert q_mean == np.add.reduce(q) / n
@@ -263,3 +263,32 @@ def test_without_a_folder_for_numbas_cache_the_kernels_compile_anyway(monkeypatc
     monkeypatch.setattr(K, "njit", njit)
     assert K._compiled(abs)(-2) == 2
     assert calls == [{"cache": True, "nogil": True}, {"nogil": True}]
+
+
+def test_the_rate_windows_ring_gives_the_shifted_windows_bias(rng):
+    from fdir_service.estimation.rate_window import RateWindow
+
+    win, shifted = RateWindow(25, 12), []
+    for k in range(80):
+        theta, q = float(rng.standard_normal()) * 0.01, 0.002 + float(rng.standard_normal()) * 0.002
+        sample = (0.05 * k, theta, q)
+        win.add(*sample)
+        shifted = (shifted + [sample])[-25:]
+        if len(shifted) >= 12:
+            t, th, q = np.array(shifted).T
+            n = len(t)
+            tc = t - np.add.reduce(t) / n
+            ref = float(np.add.reduce(q) / n) - float(tc @ (th - np.add.reduce(th) / n) / (tc @ tc))
+            assert win.bias() == ref
+        else:
+            assert win.bias() is None
+
+
+@pytest.mark.parametrize("m", [1, 3, 6, 8, 11])
+def test_inverse_checks_are_numpys(rng, m):
+    A = rng.standard_normal((m, m)) * 10.0 ** rng.uniform(-3, 3, (m, m))
+    R = np.diag(rng.random(m) + 0.01)
+    assert K.inverse_checks(A, R) == (True, float(np.min(np.diag(R))), float(A.trace()))
+    A[0, -1] = np.inf
+    assert not K.inverse_checks(A, R)[0]
+    assert K.inverse_checks(np.zeros((0, 0)), np.zeros((0, 0))) == (True, 0.0, 0.0)
