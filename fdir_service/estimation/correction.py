@@ -30,21 +30,6 @@ from fdir_service.estimation.kernels import (
 if TYPE_CHECKING:
     from fdir_service.estimation.frame import Frame
 
-_FLOOR: dict[int, tuple[np.ndarray, float]] = {}
-"""id(R) -> (R, min diag R): R is a measurement model's constant matrix (cached by identity)."""
-
-
-def _diag_floor(R: np.ndarray) -> float:
-    hit = _FLOOR.get(id(R))
-    if hit is not None and hit[0] is R:
-        return hit[1]
-    floor = float(np.min(np.diag(R))) if R.size else 0.0
-    if len(_FLOOR) > 256:
-        _FLOOR.clear()
-    _FLOOR[id(R)] = (R, floor)
-    return floor
-
-
 try:                                   # numpy.linalg.inv's own gufunc, without its wrapper (8 -> 3 us)
     from numpy.linalg import _umath_linalg as _linalg
 except ImportError:                    # pragma: no cover - another numpy's layout
@@ -112,7 +97,8 @@ def kalman_gain(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> tuple[np.ndarray
 
 def _numpy_checks(S: np.ndarray, R: np.ndarray) -> tuple[bool, float, float]:
     """`kernels.inverse_checks` for S past 128 rows."""
-    return bool(np.isfinite(S).all()), _diag_floor(R), float(S.trace())
+    floor = float(np.min(np.diag(R))) if R.size else 0.0
+    return bool(np.isfinite(S).all()), floor, float(S.trace())
 
 
 def _spd_inverse(S: np.ndarray, R: np.ndarray, fallback: bool = True) -> np.ndarray | None:

@@ -292,3 +292,13 @@ def test_inverse_checks_are_numpys(rng, m):
     A[0, -1] = np.inf
     assert not K.inverse_checks(A, R)[0]
     assert K.inverse_checks(np.zeros((0, 0)), np.zeros((0, 0))) == (True, 0.0, 0.0)
+
+
+def test_a_covariance_past_128_rows_takes_numpys_checks(rng):
+    from fdir_service.estimation.correction import _spd_inverse
+
+    A = rng.standard_normal((130, 130))
+    R = np.eye(130) * 0.5
+    S = A @ A.T + R
+    inv = _spd_inverse(S, R)
+    assert inv is not None and np.allclose(inv @ S, np.eye(130), atol=1e-8)
