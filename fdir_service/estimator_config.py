@@ -224,6 +224,8 @@ class FilterSettings:
     wind_mean_tau_s: float = 60.0        # s: how fast the mean wind the gusts return to follows the wind
     wind_hold: float = 0.0               # 0..1: the share of a ground-speed change that is the wind's
     held_airspeed_sigma: float = 0.5     # m/s: the airspeed's gusts an airspeed hold lets through
+    held_airspeed_tau_s: float | None = None  # s: their time constant (None: wind_gust_tau_s)
+    engine_tau_s: float = 0.0            # s: the throttle delivered lags the command by this (0: at once)
     hold_resume: str = "cloud"           # the held airspeed when the hold takes over again under a
     #                                      declared pitot: "cloud" (every particle's) | "held" (the
     #                                      airspeed held before the let-go)
@@ -534,6 +536,8 @@ def _settings(root: TomlTable, faults: tuple[FaultSpec, ...]) -> FilterSettings:
         wind_hold=f.take("wind_hold", "number", d.wind_hold, check=UNIT_INTERVAL),
         held_airspeed_sigma=f.take("held_airspeed_sigma", "number", d.held_airspeed_sigma,
                                    check=NON_NEGATIVE),
+        held_airspeed_tau_s=f.take("held_airspeed_tau_s", "number", d.held_airspeed_tau_s, check=POSITIVE),
+        engine_tau_s=f.take("engine_tau_s", "number", d.engine_tau_s, check=NON_NEGATIVE),
         exclusive_items=_exclusive_items(f, faults),
         imm=_imm(f, faults), gating=_gating(f), **words)
     f.finish()

@@ -101,17 +101,20 @@ class PitotRow:
 
     def __init__(self, entries: np.ndarray, wind: int, held: np.ndarray, row: int, sigma: float,
                  dt: float = 0.05, gust: tuple[float, float, float] = (1.5, 10.0, 60.0),
-                 hold: float = 0.0, free_sigma: float | None = None, resume_held: bool = False) -> None:
+                 hold: float = 0.0, free_sigma: float | None = None, resume_held: bool = False,
+                 held_tau: float | None = None) -> None:
         self.entries = np.asarray(entries, dtype=int)
         self.wind = int(wind)
         self.held = np.asarray(held, dtype=int)
         self.row = int(row)
         self.sigma = float(sigma)
         g_sigma, tau, tau_m = (float(v) for v in gust)
-        self.a = math.exp(-dt / tau)
+        self.free_a = math.exp(-dt / tau)
+        self.a = self.free_a if held_tau is None else math.exp(-dt / float(held_tau))
+        """The gusts' one-step correlation under the hold (`held_tau`, s; None: the wind's tau)."""
         self.step_sigma = g_sigma * math.sqrt(1.0 - self.a * self.a)
         free = g_sigma if free_sigma is None else float(free_sigma)
-        self.free_step_sigma = free * math.sqrt(1.0 - self.a * self.a)
+        self.free_step_sigma = free * math.sqrt(1.0 - self.free_a * self.free_a)
         self.mean_rate = min(dt / tau_m, 1.0)
         self.hold = float(hold)
         """kappa (0..1): the share of the ground speed's predicted change that the wind takes (`evolve`)."""
@@ -182,8 +185,9 @@ class PitotRow:
         fault_free = free & ~modes[self.held].any(axis=0)
         kappa = self._kappa(W, u0, fault_free)
         c = self._held_sum(W, u0, kappa)
-        sigma = self.step_sigma if kappa == self.hold else self.free_step_sigma
-        c_next = self.mean + self.a * (c - self.mean) + sigma * rng.standard_normal(W.size)
+        held = kappa == self.hold
+        sigma, a = (self.step_sigma, self.a) if held else (self.free_step_sigma, self.free_a)
+        c_next = self.mean + a * (c - self.mean) + sigma * rng.standard_normal(W.size)
         step = self._wind_of(c_next, X[1], kappa) - W
         step *= free
         W += step
@@ -202,7 +206,8 @@ class PitotRow:
         if self.memory is None:
             return
         c = self._held_sum(self.memory.value[self.wind], u0, kappa)
-        self.memory.value[self.wind] = self._wind_of(self.mean + self.a * (c - self.mean), u1, kappa)
+        a = self.a if kappa == self.hold else self.free_a
+        self.memory.value[self.wind] = self._wind_of(self.mean + a * (c - self.mean), u1, kappa)
 
     def _kappa(self, W: np.ndarray, u: np.ndarray, fault_free: np.ndarray) -> float:
         """This step's kappa: `hold`, or 0 while the throttle has no authority (`command`); when it
@@ -293,4 +298,4 @@ def pitot_row(estimator) -> PitotRow:
     return PitotRow(np.array(entries), wind_entry(faults), np.array(held, dtype=int),
                     estimator.observed.index("airspeed"), sigma, estimator.dt_s,
                     (gust_sigma(s), s.wind_gust_tau_s, s.wind_mean_tau_s), s.wind_hold, s.wind_gust_sigma,
-                    s.hold_resume == "held")
+                    s.hold_resume == "held", s.held_airspeed_tau_s)

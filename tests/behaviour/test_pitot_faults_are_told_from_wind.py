@@ -1,7 +1,7 @@
 """The catalogue estimator watching the pitot (config/estimators/aerosonde-catalogue.toml) in an
 8 m/s headwind with moderate turbulence, on a flight that climbs at 3 m/s from 20 s: the wind and
-its gusts alone raise nothing; a 5 m/s pitot step in level flight is declared on the pitot within a
-second; a pitot blocked in the climb (its reading following the altitude) is declared blocked, and
+its gusts alone raise nothing; a 3 m/s pitot step in level flight is declared on the pitot within a
+second with this aircraft's hold, within 3.5 s with the catalogue's looser one; a pitot blocked in the climb (its reading following the altitude) is declared blocked, and
 the elevator, which the airspeed's dynamic pressure scales, is not blamed. The pitot faults are put
 on the recorded airspeed after the flight (the autopilot flew on a healthy navigation), and
 declarations use the service's hysteresis over each item's types."""
@@ -66,19 +66,27 @@ def test_wind_gusts_and_the_climb_alone_raise_nothing(windy_climb):
     assert raised == set()
 
 
-def test_a_pitot_step_in_level_flight_is_declared_on_the_pitot_within_a_second(windy_climb):
+@pytest.mark.parametrize("hold, within_s", [
+    ({"held_airspeed_sigma": 0.3, "held_airspeed_tau_s": 0.3}, 1.0),   # this aircraft's, as identified
+    ({}, 3.5),                                                          # the catalogue's looser default
+])
+def test_a_pitot_step_in_level_flight_is_declared_on_the_pitot(windy_climb, hold, within_s):
     """In level flight under an airspeed hold a biased and a blocked pitot both read steady: the
     item is certain, its type is not until the altitude changes (docs/faults.md). 3 m/s, 4 sigma of
-    the assumed noise: declared in 0.25-0.55 s by 8 of 8 filter seeds. While the healthy pitot's
-    airspeed had the wind's gusts (1.5 m/s) instead of the hold's (held_airspeed_sigma, 0.5 m/s),
-    such a step sat at the edge of what the gusts allowed: 6 of 8 seeds within a second."""
+    the assumed noise. With the hold `fdir identify` measures on this simulator's autopilot (0.23 m/s
+    gone in 0.25 s; here 0.3 and 0.3) it is declared in 0.25-0.6 s by 8 of 8 filter seeds; with the
+    catalogue's default (0.75 m/s gone in 1 s, what JSBSim's aircraft lets through) in 0.5-3.0 s,
+    the price of a hold loose enough for an aircraft the monitor was not built for
+    (docs/faults.md, "The catalogue on other aircraft")."""
     sc, tr, y, mask = windy_climb
+    sc = dataclasses.replace(sc, estimator=dataclasses.replace(
+        sc.estimator, settings=dataclasses.replace(sc.estimator.settings, **hold)))
     on = (tr.t >= 8.0) & (tr.t < 16.0)
     y = y.copy()
     y[on, airspeed_row(sc)] += 3.0
     dec = item_declared(sc, tr, y, mask)
     first = tr.t[np.flatnonzero(dec["airspeed"] & on)[0]]
-    assert first - 8.0 < 1.0
+    assert first - 8.0 < within_s
     assert dec["airspeed"][on & (tr.t > first)].mean() > 0.9
     assert not any(dec[t][on].any() for t in ("delta_e", "delta_t", "theta", "q", "baro_alt"))
     assert not dec["airspeed"][tr.t > 20.0].any()                    # and it clears after

@@ -240,12 +240,13 @@ def test_in_an_upset_the_hold_lets_go_until_the_airspeed_loop_has_settled():
 def test_under_a_hold_the_airspeeds_gusts_have_the_held_sigma_not_the_winds():
     est = load_estimator("aerosonde-catalogue")
     s = est.settings
-    assert (s.wind_hold, s.wind_gust_sigma, s.held_airspeed_sigma) == (1.0, 1.5, 0.5)
-    assert gust_sigma(s) == 0.5                                            # kappa = 1: the hold's
+    assert (s.wind_hold, s.wind_gust_sigma) == (1.0, 1.5)
+    assert (s.held_airspeed_sigma, s.held_airspeed_tau_s) == (0.75, 1.0)
+    assert gust_sigma(s) == 0.75                                           # kappa = 1: the hold's
     assert gust_sigma(dataclasses.replace(s, wind_hold=0.0)) == 1.5        # no hold: the wind's
-    assert gust_sigma(dataclasses.replace(s, wind_hold=0.5)) == pytest.approx(1.0)
+    assert gust_sigma(dataclasses.replace(s, wind_hold=0.5)) == pytest.approx(1.125)
     part = pitot_row(est)
-    assert part.step_sigma == pytest.approx(0.5 * np.sqrt(1.0 - np.exp(-2 * 0.05 / 10.0)))
+    assert part.step_sigma == pytest.approx(0.75 * np.sqrt(1.0 - np.exp(-2 * 0.05 / 1.0)))   # gone in 1 s
     nf = len(est.faults)
     X = np.zeros((N_AIRFRAME + nf, 4000))
     X[1] = 38.0
@@ -257,7 +258,27 @@ def test_under_a_hold_the_airspeeds_gusts_have_the_held_sigma_not_the_winds():
         u_before = X[1].copy()
         X[1] += 0.3 * rng.standard_normal(4000)      # the ground speed swings; the hold takes it
         part.evolve(X, modes, np.zeros(1), np.zeros(1, dtype=bool), rng, u_before)
-    assert (X[1] + X[N_AIRFRAME + part.wind]).std() == pytest.approx(0.5, abs=0.03)
+    assert (X[1] + X[N_AIRFRAME + part.wind]).std() == pytest.approx(0.75, abs=0.04)
+
+
+def test_under_a_hold_the_airspeeds_gusts_have_the_holds_time_constant_and_the_wind_its_own():
+    part = PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, dt=0.05,
+                    gust=(0.0, 10.0, 1e9), hold=1.0, free_sigma=0.0, held_tau=1.0)
+    part.mean = 40.0
+    X = cloud(2)
+    modes = np.zeros((LAYOUT.nf, 2), dtype=bool)
+    X[N_AIRFRAME + WIND] = 10.0                      # the airspeed u + W 2 m/s over the held 40
+    for _ in range(20):                              # 1 s = the hold's time constant
+        part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), np.random.default_rng(0))
+    np.testing.assert_allclose(X[1] + X[N_AIRFRAME + WIND], 40.0 + 2.0 * np.exp(-1.0))
+    part.command(1.0)                                # full throttle: the hold lets go, the wind's 10 s
+    X[N_AIRFRAME + WIND] = 10.0
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), np.random.default_rng(0))
+    mean = part.mean                                 # the head wind's mean, taken as the hold let go
+    part.evolve(X, modes, np.zeros(2), np.zeros(2, dtype=bool), np.random.default_rng(0))
+    np.testing.assert_allclose(X[N_AIRFRAME + WIND] - mean, (10.0 - mean) * np.exp(-0.05 / 10.0))
+    unset = PitotRow(np.array([WIND, BLK]), WIND, np.array([BLK]), row=1, sigma=0.75, hold=1.0)
+    assert unset.a == unset.free_a == np.exp(-0.05 / 10.0)   # not set: the wind's time constant for both
 
 
 def test_a_blocked_pitot_in_mode_1_reads_g_dh_over_v_more_in_a_climb_and_holds_in_level_flight():
