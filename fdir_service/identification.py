@@ -39,7 +39,8 @@ Mass, inertia and geometry are the file's. Units SI (rad, m/s, s).
 
 It also prints what the autopilot's airspeed hold lets through (`airspeed_spread`): the pitot's
 spread about its minute mean beyond its noise, the floor for a pitot-watching estimator's
-`[parts] held_airspeed_sigma` (docs/faults.md, "The pitot and the wind").
+`[parts] held_airspeed_sigma`, and how soon it is gone (`held_airspeed_tau`: its autocorrelation's
+1/e time, for `held_airspeed_tau_s`) (docs/faults.md, "The pitot and the wind").
 """
 
 from __future__ import annotations
@@ -56,6 +57,7 @@ from scipy.ndimage import uniform_filter1d
 from fdir_service.airframe.params import AirframeParams
 from fdir_service.errors import ConfigError
 from fdir_service.estimation.base import StepOutput
+from fdir_service.propulsion_identification import PropulsionFit, fit_propulsion
 
 PRIOR_FRACTION = 0.3
 """Prior std of each fitted slope as a fraction of the airframe file's value."""
@@ -112,6 +114,8 @@ class Identification:
     moment_residual_std_before: float  # RMS q' residual of the file's airframe (rad/s^2)
     airspeed_spread: float = float("nan")  # m/s: the airspeed's RMS about its minute mean, noise removed
     airspeed_noise: float = float("nan")   # m/s: the pitot's noise, from successive readings
+    airspeed_tau: float = float("nan")     # s: the 1/e time of the held airspeed's deviation
+    propulsion: PropulsionFit | None = None  # the throttle's thrust and the engine's lag (None: no ax row)
 
     def report(self) -> str:
         """A table of the coefficients and the fit quality, for the terminal."""
@@ -124,6 +128,11 @@ class Identification:
             lines.append(f"airspeed:  {self.airspeed_spread:.2f} m/s RMS about its {HOLD_MEAN_S:.0f} s mean "
                          f"beyond the pitot's noise ({self.airspeed_noise:.2f} m/s): what the airspeed "
                          f"hold lets through, a floor for [parts] held_airspeed_sigma")
+        if math.isfinite(self.airspeed_tau):
+            lines.append(f"           it loses its memory in {self.airspeed_tau:.2f} s: "
+                         f"[parts] held_airspeed_tau_s no shorter (the catalogue's 1 s)")
+        if self.propulsion is not None:
+            lines.append(self.propulsion.report())
         lines.append(f"{'coefficient':<12}{'file':>10}{'fitted':>10}{'+- std':>10}")
         kept = "   kept: the flight's fit had the wrong sign"
         lines += [f"{c.name:<12}{c.prior:>10.4f}{c.estimate:>10.4f}{c.std:>10.4f}" + (kept if c.kept else "")
@@ -341,6 +350,37 @@ def airspeed_spread(t: np.ndarray, V: np.ndarray) -> tuple[float, float]:
     return math.sqrt(max(float(np.var(about_mean)) - noise_var, 0.0)), math.sqrt(noise_var)
 
 
+def held_airspeed_tau(t: np.ndarray, V: np.ndarray, lags_s: float = 10.0) -> float:
+    """The time (s) over which the airspeed's deviation from its HOLD_MEAN_S mean loses its memory:
+    the first lag where its autocorrelation, the pitot's white noise taken out (lag 0 left out),
+    falls to 1/e, interpolated between frames (the estimator's held_airspeed_tau_s under an
+    airspeed hold). V (K,) m/s at times t (K,) s, NaN where missing; NaN: under 2 windows of data
+    or a spread under a tenth of the noise; lags_s (s): the longest lag looked at (returned if not
+    reached)."""
+    ok = np.isfinite(V)
+    V, t = V[ok], t[ok]
+    if V.size < 3 or t[-1] - t[0] < 2 * HOLD_MEAN_S:
+        return float("nan")
+    dt = float(np.median(np.diff(t)))
+    width = max(int(round(HOLD_MEAN_S / dt)), 1)
+    d = (V - uniform_filter1d(V, width, mode="nearest"))[width:-width]
+    d = d - d.mean()
+    noise_var = 0.5 * float(np.var(np.diff(V)))
+    held_var = float(np.var(d)) - noise_var
+    if held_var <= 0.01 * noise_var:                 # a spread under a tenth of the noise: nothing to time
+        return float("nan")
+    lags = np.arange(1, max(int(round(lags_s / dt)), 1) + 1)
+    rho = np.array([float(np.mean(d[:-k] * d[k:])) for k in lags]) / held_var
+    below = np.flatnonzero(rho <= math.exp(-1.0))
+    if below.size == 0:
+        return float(lags[-1] * dt)
+    k = int(below[0])
+    if k == 0:
+        return float(dt)
+    r0, r1 = rho[k - 1], rho[k]
+    return float((lags[k - 1] + (r0 - math.exp(-1.0)) / (r0 - r1)) * dt)
+
+
 def identify(frames: FlightFrames, base: AirframeParams) -> Identification:
     """Fit lift and pitching moment of `base` (the airframe file) to a fault-free flight."""
     s = _usable(frames)
@@ -365,15 +405,35 @@ def identify(frames: FlightFrames, base: AirframeParams) -> Identification:
     coefs += [Coefficient(names[i], float(prior[i]), float(a[i]), float(a_std[i]), i in kept)
               for i in range(4)]
     spread, noise = airspeed_spread(s["t"], s["airspeed"])
+    propulsion = _propulsion(frames, s, params)
+    if propulsion is not None:
+        params = propulsion.apply(params)
     return Identification(params, coefs, int(b.size), lift_res, lift_r2, _rms(resid * K),
-                          _r2(resid, b), before, spread, noise)
+                          _r2(resid, b), before, spread, noise, held_airspeed_tau(s["t"], s["airspeed"]),
+                          propulsion)
+
+
+def _propulsion(frames: FlightFrames, s: dict[str, np.ndarray],
+                params: AirframeParams) -> PropulsionFit | None:
+    """The flight's propulsion (`propulsion_identification.fit_propulsion`) on the fitted `params`;
+    None without an ax row (or too few level frames)."""
+    if "ax" not in frames.rows:
+        return None
+    nan = np.full(s["t"].size, np.nan)
+    cols = {r: frames.column(r) if r in frames.rows else nan for r in ("ax", "theta", "u", "w")}
+    cols.update(az=s["az"], airspeed=s["airspeed"], de=s["de"], q=s["q"],
+                dt=np.asarray(frames.u, float)[:, 1])
+    return fit_propulsion(cols, params, float(np.median(np.diff(s["t"]))))
 
 
 def airframe_toml(ident: Identification, base_name: str, log_name: str) -> str:
     """The identified airframe as an airframe file (every parameter; the fitted ones marked)."""
     fitted = {c.name for c in ident.coefficients}
+    fitted |= {"k_motor", "C_prop"} if ident.propulsion is not None else set()
+    what = "the lift curve, the pitch balance and the propulsion" if ident.propulsion else \
+        "the lift curve and the pitch balance"
     lines = [f"# Airframe identified by `fdir identify` from {log_name}, starting from {base_name}.",
-             "# Fitted: the lift curve and the pitch balance (fdir_service/identification.py);",
+             f"# Fitted: {what} (fdir_service/identification.py);",
              "# everything else is the starting file's.", "", "[airframe]"]
     for f in dataclasses.fields(ident.params):
         v = getattr(ident.params, f.name)

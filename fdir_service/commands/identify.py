@@ -23,8 +23,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "by equation-error least squares over each frame interval, with instrumental variables against "
         "the accelerometer's noise and the file's values as a prior; a slope fitted with the wrong sign "
         "keeps the file's value. Elevator doublets help (`sim-bridge fly --doublet 3`). Prints the fit "
-        "quality, what the autopilot's airspeed hold lets through (for a pitot-watching estimator's "
-        "[parts] held_airspeed_sigma), and "
+        "quality, what the autopilot's airspeed hold lets through and how soon it is gone (for a "
+        "pitot-watching estimator's [parts] held_airspeed_sigma and held_airspeed_tau_s), and "
         "writes an airframe file for `fdir run --estimator` (via the estimator's `airframe` key) or an "
         "experiment's [estimator] airframe. The flight must be fault-free: a fault is fitted as airframe.")
     p.add_argument("log", metavar="LOG.mcap", help="a recording of `fdir run` of a fault-free flight")

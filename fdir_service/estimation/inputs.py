@@ -11,6 +11,14 @@ observed rows (m_obs,) and the input [delta_e, delta_t] (2,), extended by the in
 `INPUT_ROWS` order) when the process takes them. A sample that did not arrive holds the
 last one (before the first: the trim's specific force and airspeed).
 
+With parts.engine_tau_s > 0 the throttle the filter takes (the derived throttle row's command and
+the throttle faults' input) is the command through a first-order lag of that time constant
+(`EngineLag`): a propeller's speed, and so its thrust, follows a throttle step in a few tenths of
+a second (JSBSim's Aerosonde 0.2-0.3 s), and read at once the autopilot's quick throttle moves in
+turbulence looked like a throttle that does not act (docs/faults.md, "The catalogue on other
+aircraft").
+The pitot's hold (`pitot.PitotRow.command`) still reads the command itself.
+
 The process integrates a frame from its start to its end; each input is the reading at the end
 (the throttle's step shows in a_x at once). With parts.az_input = "frame_mean" a_z is instead the
 mean of the frame's two readings: a_z follows the short-period motion within the frame, and the
@@ -46,6 +54,22 @@ def trim_inputs(z_trim: np.ndarray) -> dict[str, float]:
             "roll": 0.0, "v": 0.0, "p": 0.0, "r": 0.0}
 
 
+class EngineLag:
+    """The throttle a propeller delivers (0..1): the command through a first-order lag, tau_s (s),
+    one step of dt (s) a frame, starting at the first command it sees."""
+
+    def __init__(self, tau_s: float, dt: float) -> None:
+        self.a = math.exp(-float(dt) / float(tau_s))
+        self.value: float | None = None
+
+    def step(self, command: float) -> float:
+        """This frame's delivered throttle for the command (NaN: the last one held)."""
+        if not math.isfinite(command):
+            return command if self.value is None else self.value
+        self.value = command if self.value is None else command + self.a * (self.value - command)
+        return self.value
+
+
 class RowSplit:
     """Observed rows and IMU inputs of an estimator's frames (module docstring).
 
@@ -56,7 +80,7 @@ class RowSplit:
     def __init__(self, observed: np.ndarray, imu: np.ndarray, imu_as_input: bool,
                  hold: np.ndarray | None = None, thrust: ThrustCheck | None = None,
                  pitot: PitotRow | None = None, attitude: tuple[int, ...] = (-1, -1, -1, -1),
-                 az_mean: int = -1) -> None:
+                 az_mean: int = -1, engine: EngineLag | None = None) -> None:
         self.observed = np.asarray(observed, dtype=int)
         self.imu = np.asarray(imu, dtype=int)
         self.imu_as_input = bool(imu_as_input)
@@ -74,6 +98,8 @@ class RowSplit:
         self.az_mean = az_mean
         """a_z's position in the held inputs when the process takes the frame's mean (-1: its end)."""
         self._az_start = float(self.hold[az_mean]) if az_mean >= 0 else 0.0
+        self.engine = engine
+        """An `EngineLag` the throttle command passes through (parts.engine_tau_s), or None."""
 
     @classmethod
     def of(cls, estimator: EstimatorConfig, imu_as_input: bool, z_trim: np.ndarray) -> RowSplit:
@@ -85,9 +111,12 @@ class RowSplit:
         derived = estimator.derived_rows
         az_mean = imu.index(rows.index("az")) if estimator.settings.az_input == "frame_mean" else -1
         thrust = ThrustCheck(estimator.airframe_params()) if THRUST_ROW in derived else None
+        tau = estimator.settings.engine_tau_s
+        engine = EngineLag(tau, estimator.dt_s) if tau > 0 and thrust is not None else None
         return cls(np.array(observed), np.array(imu), imu_as_input, np.array([trim[rows[j]] for j in imu]),
                    thrust, pitot_row(estimator) if AIRSPEED_ROW in derived else None,
-                   tuple(rows.index(r) if r in rows else -1 for r in ("theta", "q", "u", "w")), az_mean)
+                   tuple(rows.index(r) if r in rows else -1 for r in ("theta", "q", "u", "w")), az_mean,
+                   engine)
 
     def split(self, y: np.ndarray, mask: np.ndarray, u: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -108,6 +137,8 @@ class RowSplit:
             self.pitot.command(float(u[1]), level)
             held = held.copy()
             held[2] = self.pitot.trusted(held[2])
+        if self.engine is not None:             # the throttle the propeller delivers
+            u = np.array([u[0], self.engine.step(float(u[1]))])
         if self.thrust is not None:             # the derived throttle row
             ax, az, V = held[:3]
             y_obs = np.append(y_obs, self.thrust.implied_throttle(ax, az, V, u[0]) - u[1])

@@ -15,6 +15,7 @@ from fdir_service.identification import (
     _moment_rows,
     _usable,
     airspeed_spread,
+    held_airspeed_tau,
     identify,
 )
 
@@ -145,3 +146,18 @@ def test_the_airspeed_holds_spread_is_told_from_the_pitots_noise():
     spread, noise = airspeed_spread(t, 40.0 + 0.5 * rng.standard_normal(t.size))
     assert spread < 0.05 and noise == pytest.approx(0.5, abs=0.02)   # a perfect hold: noise only
     assert np.isnan(airspeed_spread(t[:1000], V[:1000])[0])         # 50 s: too short to tell
+
+
+def test_the_held_airspeeds_time_constant_is_told_from_the_pitots_noise():
+    dt, tau = 0.05, 0.8
+    t = np.arange(0.0, 600.0, dt)
+    rng = np.random.default_rng(3)
+    a = np.exp(-dt / tau)
+    e = 0.7 * np.sqrt(1.0 - a * a) * rng.standard_normal(t.size)
+    held = np.zeros(t.size)
+    for k in range(1, t.size):                       # what a hold lets through: a 0.8 s Gauss-Markov
+        held[k] = a * held[k - 1] + e[k]
+    V = 40.0 + held + 0.5 * rng.standard_normal(t.size)
+    assert held_airspeed_tau(t, V) == pytest.approx(tau, rel=0.15)
+    assert np.isnan(held_airspeed_tau(t, 40.0 + 0.5 * rng.standard_normal(t.size)))  # noise only
+    assert np.isnan(held_airspeed_tau(t[:1000], V[:1000]))                           # too short

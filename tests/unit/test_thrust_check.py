@@ -3,12 +3,14 @@ checked against the airframe's own force balance, and the derived row it gives t
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from fdir_service.airframe.dynamics import derivatives_scalar
 from fdir_service.estimation.factory import build_filter, trim_input, trim_state
-from fdir_service.estimation.inputs import G, RowSplit
+from fdir_service.estimation.inputs import EngineLag, G, RowSplit
 from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.thrust import ThrustCheck
@@ -61,6 +63,31 @@ def test_the_derived_row_follows_the_observed_rows_and_a_throttle_fault_adds_to_
     meas = MeasurementModel.build(layout, catalogue.observed_sigma())
     dt = [f.id for f in catalogue.faults].index("dt_eff")
     assert meas.H[T, N_AIRFRAME + dt] == 1.0 and not meas.H[T, :N_AIRFRAME].any()
+
+
+def test_the_throttle_delivered_follows_the_command_through_the_engines_lag():
+    lag = EngineLag(0.25, 0.05)
+    assert lag.step(0.5) == 0.5                                   # starts where the command is
+    out = [lag.step(0.8) for _ in range(5)]                       # a step of 0.3: 1 - 1/e in 0.25 s
+    assert out[-1] == pytest.approx(0.8 - 0.3 * np.exp(-1.0))
+    assert np.all(np.diff(out) > 0) and lag.step(float("nan")) == out[-1]
+
+
+def test_with_an_engine_lag_the_row_and_the_throttle_faults_take_the_delivered_throttle(catalogue):
+    settings = dataclasses.replace(catalogue.settings, engine_tau_s=0.25)
+    lagged = dataclasses.replace(catalogue, settings=settings)
+    T = catalogue.observed.index("throttle")
+    rows = catalogue.measurements
+    y = np.zeros(len(rows))
+    y[[rows.index(r) for r in ("ax", "az", "airspeed")]] = [0.5, -9.7, 40.0]
+    mask = np.ones(len(rows), bool)
+    for est, delivered in ((catalogue, 0.8), (lagged, 0.8 - 0.3 * np.exp(-0.05 / 0.25))):
+        split = RowSplit.of(est, True, trim_state(est))
+        split.split(y, mask, np.array([-0.08, 0.5]))
+        y_obs, _, u = split.split(y, mask, np.array([-0.08, 0.8]))          # the autopilot opens up
+        assert u[1] == pytest.approx(delivered)
+        assert y_obs[T] == pytest.approx(split.thrust.implied_throttle(0.5, -9.7, 40.0, -0.08) - delivered)
+    assert catalogue.settings.engine_tau_s == 0.0
 
 
 def test_a_throttle_entry_jumps_to_the_throttle_the_row_shows(catalogue):
