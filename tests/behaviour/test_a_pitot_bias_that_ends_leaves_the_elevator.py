@@ -19,7 +19,7 @@ from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
 from sim_bridge.type_yardstick import item_view, kind_of
 from sim_bridge.yardstick import Hysteresis, declared
-from tests.helpers.declarations import HOLD_BEFORE_STOP_55, TRACED_BEFORE_STOP_52
+from tests.helpers.declarations import TRACED_BEFORE_STOP_52
 
 BIAS_S, AFTER_S = (18.0, 31.5), (32.0, 50.0)
 
@@ -29,7 +29,7 @@ def declared_items(moment_wind: str) -> tuple[np.ndarray, np.ndarray]:
     sc = load_scenario("real-pitot")
     est = dataclasses.replace(sc.estimator,
                               settings=dataclasses.replace(sc.estimator.settings, moment_wind=moment_wind,
-                                                           **TRACED_BEFORE_STOP_52, **HOLD_BEFORE_STOP_55))
+                                                           **TRACED_BEFORE_STOP_52))
     tr = fly(dataclasses.replace(sc, estimator=est, duration_s=AFTER_S[1]), "RJMRPF", 84, 0)
     P = np.array([o.fault_probability for o in tr.outputs])
     view = item_view(P, [kind_of(f) for f in est.faults], [f.id for f in est.faults])

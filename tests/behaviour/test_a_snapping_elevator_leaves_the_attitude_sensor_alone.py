@@ -19,12 +19,7 @@ import pytest
 
 from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
-from tests.helpers.declarations import (
-    ATTITUDE_BEFORE_STOP_51,
-    HOLD_BEFORE_STOP_55,
-    MEMORY_BEFORE_STOP_52,
-    first_declarations,
-)
+from tests.helpers.declarations import ATTITUDE_BEFORE_STOP_51, MEMORY_BEFORE_STOP_52, first_declarations
 
 
 def declarations(frame_angle: str) -> dict[str, float]:
@@ -32,8 +27,7 @@ def declarations(frame_angle: str) -> dict[str, float]:
     # pinned to the parts it measured (stop 46): stop 48's moment wind and resumed hold fly another flight
     parts = dataclasses.replace(sc.estimator.settings, sigma_x=ATTITUDE_BEFORE_STOP_51["sigma_x"],
                                 frame_angle=frame_angle, moment_alpha="lift", moment_wind="entry",
-                                hold_resume="cloud", **MEMORY_BEFORE_STOP_52,
-                                **HOLD_BEFORE_STOP_55)
+                                hold_resume="cloud", **MEMORY_BEFORE_STOP_52)
     est = dataclasses.replace(sc.estimator, settings=parts)
     tr = fly(dataclasses.replace(sc, estimator=est, duration_s=35.0), "RJMRPF", 30, 0)
     return first_declarations(sc.estimator.faults, tr)

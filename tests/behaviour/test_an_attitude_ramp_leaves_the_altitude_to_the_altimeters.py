@@ -12,26 +12,20 @@ with the catalogue's fault-free value as it was when traced (stop 52's, `MEMORY_
 
 from __future__ import annotations
 
-from tests.helpers.declarations import (
-    HOLD_BEFORE_STOP_55,
-    MEMORY_AT_STOP_52,
-    declared_when_quiet,
-    fly_with_parts,
-)
+from tests.helpers.declarations import MEMORY_AT_STOP_52, declared_when_quiet, fly_with_parts
 
-TRACED = ("real-drift", 14, 40.0)                  # world, run, seconds flown ...
-AS_TRACED = {**MEMORY_AT_STOP_52, **HOLD_BEFORE_STOP_55}   # ... and the catalogue as it was traced
+TRACED = ("real-drift", 14, 40.0)                  # world, run, seconds flown
 
 
 def test_with_the_unwind_only_the_attitude_is_declared_and_the_altitude_holds():
-    found, altitude_error = fly_with_parts(*TRACED, gyro_exit_unwind=0.5, **AS_TRACED)
+    found, altitude_error = fly_with_parts(*TRACED, gyro_exit_unwind=0.5, **MEMORY_AT_STOP_52)
     assert set(found) == {"theta"} and 18.8 < found["theta"] < 25.0
     assert altitude_error < 1.5
-    assert declared_when_quiet(*TRACED, gyro_exit_unwind=0.5, **AS_TRACED) == {}
+    assert declared_when_quiet(*TRACED, gyro_exit_unwind=0.5, **MEMORY_AT_STOP_52) == {}
 
 
 def test_without_it_the_altitude_leaves_and_the_barometer_stands_after_the_ramp():
-    found, altitude_error = fly_with_parts(*TRACED, gyro_exit_unwind=0.0, **AS_TRACED)
+    found, altitude_error = fly_with_parts(*TRACED, gyro_exit_unwind=0.0, **MEMORY_AT_STOP_52)
     assert "baro" in found and altitude_error > 5.0
-    standing = declared_when_quiet(*TRACED, gyro_exit_unwind=0.0, **AS_TRACED)
+    standing = declared_when_quiet(*TRACED, gyro_exit_unwind=0.0, **MEMORY_AT_STOP_52)
     assert standing.get("baro", 0.0) > 3.0

@@ -15,8 +15,8 @@ real-engine run 44 (the engine lost 22.0-34.0 s), real-actuators run 1 (the elev
 
 from __future__ import annotations
 
-from tests.helpers.declarations import HOLD_BEFORE_STOP_55, declared_when_quiet
 from tests.helpers.declarations import MEMORY_BEFORE_STOP_52 as BEFORE_STOP_52
+from tests.helpers.declarations import declared_when_quiet
 
 
 def test_an_engine_that_comes_back_leaves_the_throttle_clear():
@@ -24,7 +24,7 @@ def test_an_engine_that_comes_back_leaves_the_throttle_clear():
 
 
 def test_with_the_memory_learnt_during_the_fault_the_throttle_stands():
-    standing = declared_when_quiet("real-engine", 44, 50.0, **BEFORE_STOP_52, **HOLD_BEFORE_STOP_55)
+    standing = declared_when_quiet("real-engine", 44, 50.0, **BEFORE_STOP_52)
     assert standing.get("dt", 0.0) > 10.0                 # of the 13 s from 37 to 50 s
 
 
@@ -33,5 +33,5 @@ def test_a_freed_jam_leaves_the_elevator_clear():
 
 
 def test_with_the_memory_learnt_during_the_jam_the_elevator_stands():
-    standing = declared_when_quiet("real-actuators", 1, 40.0, **BEFORE_STOP_52, **HOLD_BEFORE_STOP_55)
+    standing = declared_when_quiet("real-actuators", 1, 40.0, **BEFORE_STOP_52)
     assert standing.get("de", 0.0) > 10.0                 # of the 16.5 s from 23.5 to 40 s

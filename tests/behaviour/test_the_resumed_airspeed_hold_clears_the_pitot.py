@@ -19,7 +19,7 @@ from sim_bridge.campaign import fly
 from sim_bridge.scenario import load_scenario
 from sim_bridge.type_yardstick import item_view, kind_of
 from sim_bridge.yardstick import Hysteresis, declared
-from tests.helpers.declarations import HOLD_BEFORE_STOP_55, TRACED_BEFORE_STOP_52
+from tests.helpers.declarations import TRACED_BEFORE_STOP_52
 
 AFTER_S = (48.0, 72.0)
 
@@ -27,8 +27,7 @@ AFTER_S = (48.0, 72.0)
 def pitot_declared_after(hold_resume: str) -> np.ndarray:
     """The pitot declared, per frame of AFTER_S (bool)."""
     sc = load_scenario("real-engine")
-    parts = dataclasses.replace(sc.estimator.settings, hold_resume=hold_resume, **TRACED_BEFORE_STOP_52,
-                                **HOLD_BEFORE_STOP_55)
+    parts = dataclasses.replace(sc.estimator.settings, hold_resume=hold_resume, **TRACED_BEFORE_STOP_52)
     est = dataclasses.replace(sc.estimator, settings=parts)
     tr = fly(dataclasses.replace(sc, estimator=est, duration_s=AFTER_S[1]), "RJMRPF", 96, 0)
     P = np.array([o.fault_probability for o in tr.outputs])

@@ -29,12 +29,6 @@ its fault-free value before stop 52. Those tests keep it, so that each flight fa
 the way it was traced."""
 
 
-HOLD_BEFORE_STOP_55 = {"held_airspeed_sigma": 0.5, "held_airspeed_tau_s": None}
-"""The catalogue's airspeed hold before stop 55: the airspeed's gusts 0.5 m/s over the wind's 10 s
-(0.75 m/s gone within 1 s since; docs/faults.md, "The pitot and the wind"). The behaviour tests
-that pin a flight traced before keep it, so that the flight fails, or is mended, as it was traced."""
-
-
 def first_declarations(faults, tr) -> dict[str, float]:
     """{item: first declared frame's time (s)} of a flight `tr` (its outputs' fault_probability)
     monitored with the estimator fault entries `faults` (`FaultSpec`s)."""

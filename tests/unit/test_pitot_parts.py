@@ -240,13 +240,13 @@ def test_in_an_upset_the_hold_lets_go_until_the_airspeed_loop_has_settled():
 def test_under_a_hold_the_airspeeds_gusts_have_the_held_sigma_not_the_winds():
     est = load_estimator("aerosonde-catalogue")
     s = est.settings
-    assert (s.wind_hold, s.wind_gust_sigma) == (1.0, 1.5)
-    assert (s.held_airspeed_sigma, s.held_airspeed_tau_s) == (0.75, 1.0)
-    assert gust_sigma(s) == 0.75                                           # kappa = 1: the hold's
+    assert (s.wind_hold, s.wind_gust_sigma, s.held_airspeed_sigma) == (1.0, 1.5, 0.5)
+    assert s.held_airspeed_tau_s is None                                   # the wind's 10 s
+    assert gust_sigma(s) == 0.5                                            # kappa = 1: the hold's
     assert gust_sigma(dataclasses.replace(s, wind_hold=0.0)) == 1.5        # no hold: the wind's
-    assert gust_sigma(dataclasses.replace(s, wind_hold=0.5)) == pytest.approx(1.125)
+    assert gust_sigma(dataclasses.replace(s, wind_hold=0.5)) == pytest.approx(1.0)
     part = pitot_row(est)
-    assert part.step_sigma == pytest.approx(0.75 * np.sqrt(1.0 - np.exp(-2 * 0.05 / 1.0)))   # gone in 1 s
+    assert part.step_sigma == pytest.approx(0.5 * np.sqrt(1.0 - np.exp(-2 * 0.05 / 10.0)))
     nf = len(est.faults)
     X = np.zeros((N_AIRFRAME + nf, 4000))
     X[1] = 38.0
@@ -258,7 +258,7 @@ def test_under_a_hold_the_airspeeds_gusts_have_the_held_sigma_not_the_winds():
         u_before = X[1].copy()
         X[1] += 0.3 * rng.standard_normal(4000)      # the ground speed swings; the hold takes it
         part.evolve(X, modes, np.zeros(1), np.zeros(1, dtype=bool), rng, u_before)
-    assert (X[1] + X[N_AIRFRAME + part.wind]).std() == pytest.approx(0.75, abs=0.04)
+    assert (X[1] + X[N_AIRFRAME + part.wind]).std() == pytest.approx(0.5, abs=0.03)
 
 
 def test_under_a_hold_the_airspeeds_gusts_have_the_holds_time_constant_and_the_wind_its_own():
