@@ -129,8 +129,8 @@ class Identification:
                          f"beyond the pitot's noise ({self.airspeed_noise:.2f} m/s): what the airspeed "
                          f"hold lets through, a floor for [parts] held_airspeed_sigma")
         if math.isfinite(self.airspeed_tau):
-            lines.append(f"           it loses its memory in {self.airspeed_tau:.2f} s: "
-                         f"[parts] held_airspeed_tau_s no shorter (the catalogue's 1 s)")
+            lines.append(f"           it loses its memory in {self.airspeed_tau:.2f} s: for [parts] "
+                         f"held_airspeed_tau_s, a second or more")
         if self.propulsion is not None:
             lines.append(self.propulsion.report())
         lines.append(f"{'coefficient':<12}{'file':>10}{'fitted':>10}{'+- std':>10}")
