@@ -115,7 +115,8 @@ class Identification:
     airspeed_spread: float = float("nan")  # m/s: the airspeed's RMS about its minute mean, noise removed
     airspeed_noise: float = float("nan")   # m/s: the pitot's noise, from successive readings
     airspeed_tau: float = float("nan")     # s: the 1/e time of the held airspeed's deviation
-    propulsion: PropulsionFit | None = None  # the throttle's thrust and the engine's lag (None: no ax row)
+    propulsion: PropulsionFit | None = None  # the throttle's thrust and the engine's lag (None: not fitted)
+    propulsion_tried: bool = False    # the recording had a_x, so the propulsion was tried
 
     def report(self) -> str:
         """A table of the coefficients and the fit quality, for the terminal."""
@@ -133,6 +134,9 @@ class Identification:
                          f"held_airspeed_tau_s, a second or more")
         if self.propulsion is not None:
             lines.append(self.propulsion.report())
+        elif self.propulsion_tried:
+            lines.append("throttle:  not fitted, the file's propulsion kept: too few level frames, or a "
+                         "throttle that hardly moved (calm air; fly in turbulence or with steps)")
         lines.append(f"{'coefficient':<12}{'file':>10}{'fitted':>10}{'+- std':>10}")
         kept = "   kept: the flight's fit had the wrong sign"
         lines += [f"{c.name:<12}{c.prior:>10.4f}{c.estimate:>10.4f}{c.std:>10.4f}" + (kept if c.kept else "")
@@ -410,7 +414,7 @@ def identify(frames: FlightFrames, base: AirframeParams) -> Identification:
         params = propulsion.apply(params)
     return Identification(params, coefs, int(b.size), lift_res, lift_r2, _rms(resid * K),
                           _r2(resid, b), before, spread, noise, held_airspeed_tau(s["t"], s["airspeed"]),
-                          propulsion)
+                          propulsion, "ax" in frames.rows)
 
 
 def _propulsion(frames: FlightFrames, s: dict[str, np.ndarray],

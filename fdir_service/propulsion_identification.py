@@ -41,6 +41,9 @@ TAU_GRID_S = (0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.7, 1.0, 1.5)
 """The engine lags (s) tried: from at once to a slow piston engine's spool."""
 MIN_FRAMES = 200
 """At least 10 s of level frames at 20 Hz."""
+MIN_THROTTLE_SPREAD = 0.02
+"""The throttle command's least standard deviation over the level frames for a fit: a flight whose
+throttle hardly moved (calm air) cannot tell the propeller's gain from its drag."""
 WANDER_S = 5.0
 """s: the span over which the residual's wander is measured (`PropulsionFit.wander`)."""
 
@@ -121,9 +124,10 @@ def _wander(r: np.ndarray, dt: float) -> float:
 def fit_propulsion(s: dict[str, np.ndarray], params: AirframeParams, dt: float) -> PropulsionFit | None:
     """The propulsion of a flight's frames s (K,) each: ax, az, airspeed, de (rad), dt (throttle
     command), theta, q, u, w (NaN where missing), on the airframe `params` (its lift already
-    fitted); dt (s) the frame step. None with fewer than MIN_FRAMES level frames."""
+    fitted); dt (s) the frame step. None with fewer than MIN_FRAMES level frames or a throttle that
+    hardly moved (MIN_THROTTLE_SPREAD)."""
     use = _level(s)
-    if np.count_nonzero(use) < MIN_FRAMES:
+    if np.count_nonzero(use) < MIN_FRAMES or not np.nanstd(s["dt"][use]) >= MIN_THROTTLE_SPREAD:
         return None
     y, V = (v[use] for v in _thrust_per_mass(s, params))
     check = ThrustCheck(params)

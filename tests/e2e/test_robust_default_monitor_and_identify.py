@@ -46,3 +46,5 @@ def test_identify_fits_an_airframe_to_a_fault_free_recording(tmp_path):
     assert "frames used: 1" in r.stdout and "pitch q'" in r.stdout
     fitted = load_airframe(out)
     assert fitted.m == 25.0 and fitted.C_mde < 0           # geometry kept, the elevator still pitches down
+    assert "throttle:  not fitted" in r.stdout             # calm air: the throttle hardly moves ...
+    assert fitted.k_motor == 80.0                          # ... and the file's propeller is kept
