@@ -339,19 +339,31 @@ HOLD_MEAN_S = 60.0
 wind_mean_tau_s, how slowly the held airspeed the monitor's gusts return to follows."""
 
 
-def airspeed_spread(t: np.ndarray, V: np.ndarray) -> tuple[float, float]:
-    """(spread, noise) m/s of the pitot readings V (K,) at times t (K,) s, NaN where missing: the
-    pitot's noise from successive readings (var(dV) / 2, the air moving little in one frame) and the
-    airspeed's RMS about its HOLD_MEAN_S mean with that noise removed (the estimator's
-    held_airspeed_sigma under an airspeed hold, pitot.gust_sigma). NaN, NaN: under 2 windows of data."""
+def _about_hold_mean(t: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, float, float] | None:
+    """(d, noise_var, dt): the pitot readings V (K,) at times t (K,) s (NaN where missing) less
+    their HOLD_MEAN_S running mean, the window's edges cut (m/s); the pitot's noise variance from
+    successive readings (var(dV) / 2, the air moving little in one frame, (m/s)^2); the median frame
+    step (s). None: under 2 windows of data."""
     ok = np.isfinite(V)
     V, t = V[ok], t[ok]
     if V.size < 3 or t[-1] - t[0] < 2 * HOLD_MEAN_S:
-        return float("nan"), float("nan")
-    width = max(int(round(HOLD_MEAN_S / float(np.median(np.diff(t))))), 1)
+        return None
+    dt = float(np.median(np.diff(t)))
+    width = max(int(round(HOLD_MEAN_S / dt)), 1)
     noise_var = 0.5 * float(np.var(np.diff(V)))
-    about_mean = (V - uniform_filter1d(V, width, mode="nearest"))[width:-width]
-    return math.sqrt(max(float(np.var(about_mean)) - noise_var, 0.0)), math.sqrt(noise_var)
+    return (V - uniform_filter1d(V, width, mode="nearest"))[width:-width], noise_var, dt
+
+
+def airspeed_spread(t: np.ndarray, V: np.ndarray) -> tuple[float, float]:
+    """(spread, noise) m/s of the pitot readings V (K,) at times t (K,) s, NaN where missing: the
+    pitot's noise and the airspeed's RMS about its HOLD_MEAN_S mean with that noise removed (the
+    estimator's held_airspeed_sigma under an airspeed hold, pitot.gust_sigma). NaN, NaN: under 2
+    windows of data."""
+    about = _about_hold_mean(t, V)
+    if about is None:
+        return float("nan"), float("nan")
+    d, noise_var, _ = about
+    return math.sqrt(max(float(np.var(d)) - noise_var, 0.0)), math.sqrt(noise_var)
 
 
 def held_airspeed_tau(t: np.ndarray, V: np.ndarray, lags_s: float = 10.0) -> float:
@@ -361,15 +373,11 @@ def held_airspeed_tau(t: np.ndarray, V: np.ndarray, lags_s: float = 10.0) -> flo
     airspeed hold). V (K,) m/s at times t (K,) s, NaN where missing; NaN: under 2 windows of data
     or a spread under a tenth of the noise; lags_s (s): the longest lag looked at (returned if not
     reached)."""
-    ok = np.isfinite(V)
-    V, t = V[ok], t[ok]
-    if V.size < 3 or t[-1] - t[0] < 2 * HOLD_MEAN_S:
+    about = _about_hold_mean(t, V)
+    if about is None:
         return float("nan")
-    dt = float(np.median(np.diff(t)))
-    width = max(int(round(HOLD_MEAN_S / dt)), 1)
-    d = (V - uniform_filter1d(V, width, mode="nearest"))[width:-width]
+    d, noise_var, dt = about
     d = d - d.mean()
-    noise_var = 0.5 * float(np.var(np.diff(V)))
     held_var = float(np.var(d)) - noise_var
     if held_var <= 0.01 * noise_var:                 # a spread under a tenth of the noise: nothing to time
         return float("nan")

@@ -185,8 +185,7 @@ class PitotRow:
         fault_free = free & ~modes[self.held].any(axis=0)
         kappa = self._kappa(W, u0, fault_free)
         c = self._held_sum(W, u0, kappa)
-        held = kappa == self.hold
-        sigma, a = (self.step_sigma, self.a) if held else (self.free_step_sigma, self.free_a)
+        a, sigma = self._gust_step(kappa)
         c_next = self.mean + a * (c - self.mean) + sigma * rng.standard_normal(W.size)
         step = self._wind_of(c_next, X[1], kappa) - W
         step *= free
@@ -206,8 +205,13 @@ class PitotRow:
         if self.memory is None:
             return
         c = self._held_sum(self.memory.value[self.wind], u0, kappa)
-        a = self.a if kappa == self.hold else self.free_a
+        a, _ = self._gust_step(kappa)
         self.memory.value[self.wind] = self._wind_of(self.mean + a * (c - self.mean), u1, kappa)
+
+    def _gust_step(self, kappa: float) -> tuple[float, float]:
+        """(a, sigma m/s): the gust's one-step correlation and noise this step, the held airspeed's
+        under the hold (kappa = `hold`), the wind's while it lets go."""
+        return (self.a, self.step_sigma) if kappa == self.hold else (self.free_a, self.free_step_sigma)
 
     def _kappa(self, W: np.ndarray, u: np.ndarray, fault_free: np.ndarray) -> float:
         """This step's kappa: `hold`, or 0 while the throttle has no authority (`command`); when it

@@ -15,6 +15,7 @@ from fdir_service.estimation.layout import N_AIRFRAME, FaultLayout
 from fdir_service.estimation.measurement import MeasurementModel
 from fdir_service.estimation.thrust import ThrustCheck
 from fdir_service.estimator_config import load_estimator
+from fdir_service.propulsion_identification import lagged
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +72,9 @@ def test_the_throttle_delivered_follows_the_command_through_the_engines_lag():
     out = [lag.step(0.8) for _ in range(5)]                       # a step of 0.3: 1 - 1/e in 0.25 s
     assert out[-1] == pytest.approx(0.8 - 0.3 * np.exp(-1.0))
     assert np.all(np.diff(out) > 0) and lag.step(float("nan")) == out[-1]
+    command = 0.5 + 0.2 * np.sin(np.arange(200) * 0.3)    # `fdir identify`'s offline lag is the same
+    stream = EngineLag(0.25, 0.05)
+    np.testing.assert_allclose(lagged(command, 0.25, 0.05), [stream.step(c) for c in command], rtol=1e-12)
 
 
 def test_with_an_engine_lag_the_row_and_the_throttle_faults_take_the_delivered_throttle(catalogue):
